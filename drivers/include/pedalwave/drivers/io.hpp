@@ -1,0 +1,93 @@
+// The narrow hardware interface: plain structs that every driver (SocketCAN, serial servo bus,
+// simulated plant) reads and writes, and the abstract Driver the runtime cycle calls.
+// Fixed maximum sizes, so nothing in the cycle allocates (N links up to kMaxLinks).
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+namespace pedalwave::drivers {
+
+inline constexpr int kMaxLinks = 64;
+inline constexpr int kMaxJoints = kMaxLinks - 1;
+
+// Per-joint status bits reported by a module (or synthesized by the driver).
+enum StatusBit : std::uint16_t {
+  kStatusOk = 0,
+  kStatusMissing = 1u << 0,       // no fresh frame for this joint this cycle
+  kStatusStale = 1u << 1,         // frame older than the cycle (late / repeated counter)
+  kStatusOutOfOrder = 1u << 2,    // rolling counter went backwards
+  kStatusChecksum = 1u << 3,      // CRC/checksum error on the frame carrying this joint
+  kStatusSaturated = 1u << 4,     // module reports its torque limit active
+  kStatusOverTemp = 1u << 5,      // module over-temperature
+  kStatusEncoderFault = 1u << 6,  // module's own encoder diagnostics
+  kStatusBusError = 1u << 7,      // bus-level error (bus-off, error-passive) affecting the joint
+  kStatusTorqueOff = 1u << 8,     // module's output stage is disabled (safe torque off)
+};
+
+// One cycle's measurements, motor side only (model-spec.md §1): the driver never sees link angles.
+struct Feedback {
+  int joints = 0;                                // N-1 joints present [-]
+  std::uint64_t seq = 0;                         // driver's cycle counter [-]
+  std::int64_t stamp_ns = 0;                     // acquisition time, CLOCK_MONOTONIC [ns]
+  std::array<double, kMaxJoints> beta{};         // motor output angle β_j [rad], (N-1)
+  std::array<double, kMaxJoints> beta_dot{};     // motor output rate β̇_j [rad/s], (N-1)
+  std::array<double, kMaxJoints> deflection{};   // spring deflection β_j − α_j [rad], (N-1)
+  std::array<std::uint16_t, kMaxJoints> status{};  // StatusBit mask per joint, (N-1)
+};
+
+// One cycle's commands. The module applies, at its own internal rate until the next command,
+//   u_j = tau_j + kp_j (beta_ref_j − β_j) + kd_j (beta_dot_ref_j − β̇_j)   [N·m, output side]
+// With kp = kd = 0 this is a pure torque command. Module-side PD exists because a host-side PD at
+// 1 kHz is discretely unstable for the paper's gains and a small reflected inertia (README).
+struct Command {
+  int joints = 0;                                // N-1 [-]
+  std::uint64_t seq = 0;                         // cycle counter of the cycle that produced it [-]
+  std::array<double, kMaxJoints> tau{};          // feed-forward torque [N·m], (N-1)
+  std::array<double, kMaxJoints> beta_ref{};     // motor angle set-point [rad], (N-1)
+  std::array<double, kMaxJoints> beta_dot_ref{}; // motor rate set-point [rad/s], (N-1)
+  std::array<double, kMaxJoints> kp{};           // module stiffness gain [N·m/rad], (N-1)
+  std::array<double, kMaxJoints> kd{};           // module damping gain [N·m·s/rad], (N-1)
+  bool torque_off = false;                       // safe torque off: every module output disabled
+};
+
+// Result of a driver call inside the cycle: never throws, never blocks past the given deadline.
+enum class IoStatus : std::uint8_t {
+  kOk = 0,        // all joints fresh
+  kPartial,       // some joints missing/stale: see Feedback::status
+  kTimeout,       // nothing arrived before the deadline
+  kBusError,      // bus-off / interface down
+};
+
+// Counters every driver keeps (monotonic, read by the runtime for telemetry and fault logic).
+struct DriverCounters {
+  std::uint64_t frames_tx = 0;
+  std::uint64_t frames_rx = 0;
+  std::uint64_t missing = 0;       // expected frames that never came
+  std::uint64_t late = 0;          // frames that came after the cycle's deadline
+  std::uint64_t duplicate = 0;     // same rolling counter twice
+  std::uint64_t out_of_order = 0;  // rolling counter went backwards
+  std::uint64_t checksum = 0;      // CRC / checksum failures
+  std::uint64_t malformed = 0;     // wrong length / id / framing
+  std::uint64_t bus_errors = 0;    // error frames (bus-off, error-passive, controller problems)
+  std::uint64_t tx_dropped = 0;    // writes the kernel/bus refused (EAGAIN, ENOBUFS)
+};
+
+// The one interface the runtime cycle uses. Everything is sized and opened before the loop
+// (open()), the cycle only calls read()/write(), which never allocate, lock or throw.
+class Driver {
+ public:
+  virtual ~Driver() = default;
+  // Number of joints (N-1) this driver serves; fixed after construction.
+  virtual int joints() const = 0;
+  // Start of cycle: trigger acquisition (e.g. send SYNC) and gather feedback until deadline_ns
+  // (CLOCK_MONOTONIC). now_ns is the cycle's wake-up time.
+  virtual IoStatus read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback& out) = 0;
+  // End of cycle: send commands (applied by the modules at the next SYNC / immediately).
+  virtual IoStatus write(const Command& cmd) = 0;
+  // Safe command on every exit path: torque off (or hold) sent before the bus is let go.
+  virtual void safe_stop() = 0;
+  virtual const DriverCounters& counters() const = 0;
+};
+
+}  // namespace pedalwave::drivers

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Installs (as root, from Debian 12 packages) what pedalwave needs to build, test and run.
+# Skips apt entirely when everything is already there, so repeated runs are fast.
+set -euo pipefail
+pkgs=(cmake ninja-build g++ clang libeigen3-dev libspdlog-dev libyaml-cpp-dev libcli11-dev
+      libgtest-dev libgmock-dev libbenchmark-dev cyclonedds-dev cyclonedds-tools rt-tests
+      librsvg2-bin can-utils)
+pkgs+=("$@")
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "[deps] installing: ${missing[*]}"
+  if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; else SUDO=; fi
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+echo "[deps] all present"

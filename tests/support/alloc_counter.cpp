@@ -1,13 +1,70 @@
+// Allocation counting for "the hot path allocates nothing" tests.
+// Normal builds interpose malloc/calloc/realloc/aligned allocation (glibc's __libc_* underneath),
+// which also catches Eigen's heap use (Eigen allocates through malloc, not operator new).
+// Sanitizer builds must leave malloc to the sanitizer runtime: there only operator new is counted.
 #include "alloc_counter.hpp"
 
+#include <cstddef>
 #include <cstdlib>
 #include <new>
 
 namespace {
-thread_local std::uint64_t g_allocations = 0;
+thread_local std::uint64_t g_allocations = 0;  // static TLS in the executable: no malloc to reach
+}  // namespace
 
-void* counted_alloc(std::size_t size, std::size_t align) {
+namespace pedalwave::test {
+std::uint64_t thread_allocations() noexcept { return g_allocations; }
+}  // namespace pedalwave::test
+
+#if defined(PEDALWAVE_SANITIZED)
+namespace {
+constexpr bool kCountInNew = true;
+}
+#else
+namespace {
+constexpr bool kCountInNew = false;  // malloc below counts
+}
+extern "C" {
+void* __libc_malloc(std::size_t);
+void* __libc_calloc(std::size_t, std::size_t);
+void* __libc_realloc(void*, std::size_t);
+void* __libc_memalign(std::size_t, std::size_t);
+void __libc_free(void*);
+
+void* malloc(std::size_t n) {
   ++g_allocations;
+  return __libc_malloc(n);
+}
+void* calloc(std::size_t n, std::size_t s) {
+  ++g_allocations;
+  return __libc_calloc(n, s);
+}
+void* realloc(void* p, std::size_t n) {
+  ++g_allocations;
+  return __libc_realloc(p, n);
+}
+void* aligned_alloc(std::size_t a, std::size_t n) {
+  ++g_allocations;
+  return __libc_memalign(a, n);
+}
+void* memalign(std::size_t a, std::size_t n) {
+  ++g_allocations;
+  return __libc_memalign(a, n);
+}
+int posix_memalign(void** out, std::size_t a, std::size_t n) {
+  ++g_allocations;
+  void* p = __libc_memalign(a, n);
+  if (!p) return 12;  // ENOMEM
+  *out = p;
+  return 0;
+}
+void free(void* p) { __libc_free(p); }
+}  // extern "C"
+#endif
+
+namespace {
+void* counted_alloc(std::size_t size, std::size_t align) {
+  if (kCountInNew) ++g_allocations;
   if (size == 0) size = 1;
   void* p = nullptr;
   if (align <= alignof(std::max_align_t)) {
@@ -20,10 +77,6 @@ void* counted_alloc(std::size_t size, std::size_t align) {
   return p;
 }
 }  // namespace
-
-namespace pedalwave::test {
-std::uint64_t thread_allocations() noexcept { return g_allocations; }
-}  // namespace pedalwave::test
 
 void* operator new(std::size_t n) { return counted_alloc(n, alignof(std::max_align_t)); }
 void* operator new[](std::size_t n) { return counted_alloc(n, alignof(std::max_align_t)); }

@@ -1,0 +1,38 @@
+// Equations of motion (model-spec.md §4 flexible, §5 rigid) in stages:
+//   kinematics → mass matrix → bias (Coriolis, gravity, spring) → forward dynamics.
+//   M(q) q̈ + c(q, q̇) + K_T q + G(q) = B u + Q
+// M: translational link+rotor inertia (W ∘ cos(θ_k − θ_l) in absolute coordinates, mapped by T),
+// link rotation I_l, rotor spin I_r Lᵀ L. B u: motor torque on the β rows (flexible) or α rows
+// (rigid). Q: any generalized external force (contact, friction, ...), nq.
+#pragma once
+
+#include "pedalwave/model/kinematics.hpp"
+#include "pedalwave/model/model.hpp"
+
+namespace pedalwave::model {
+
+// d.M (and its Cholesky factor) at the q given to the last update_kinematics.
+void compute_mass_matrix(const Model& m, Data& d);
+
+// d.coriolis, d.gravity, d.spring and d.bias at (q, q̇) (after update_kinematics with q̇).
+void compute_bias(const Model& m, Data& d, const Eigen::Ref<const VectorXd>& q);
+
+// q̈ = M⁻¹ (B u + Q − bias). Runs every stage (kinematics included). u: (N-1) output-side motor
+// torques [N·m]; Q: (nq) or empty for none. Returns false (qdd untouched) if M is not positive
+// definite — impossible for validated parameters, but reported rather than producing NaN.
+bool forward_dynamics(const Model& m, Data& d, const Eigen::Ref<const VectorXd>& q,
+                      const Eigen::Ref<const VectorXd>& qd, const Eigen::Ref<const VectorXd>& u,
+                      const Eigen::Ref<const VectorXd>& Q, Eigen::Ref<VectorXd> qdd);
+
+// Solve M x = b in place with the current factorization (after compute_mass_matrix).
+void solve_mass(const Data& d, Eigen::Ref<VectorXd> b);
+
+// Energies [J] (after update_kinematics; kinetic also needs compute_mass_matrix).
+double kinetic_energy(const Data& d, const Eigen::Ref<const VectorXd>& qd);
+double gravity_energy(const Model& m, const Data& d, const Eigen::Ref<const VectorXd>& q);
+double spring_energy(const Model& m, const Eigen::Ref<const VectorXd>& q);
+
+// Spring (SEA) torques K(β − α) [N·m], (N-1); zero for rigid joints.
+void sea_torques(const Model& m, const Eigen::Ref<const VectorXd>& q, Eigen::Ref<VectorXd> tau);
+
+}  // namespace pedalwave::model

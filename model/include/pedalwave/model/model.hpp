@@ -1,0 +1,100 @@
+// The plant model's constant part (Model, built once from validated Params) and its workspace
+// (Data, sized once from a Model; everything an evaluation writes lives here, so evaluations
+// allocate nothing). Pinocchio's Model/Data split.
+//
+// Coordinates (model-spec.md §1), 0-based in code:
+//   q = [α_0 … α_{N-2}, θ_N, p_x, p_z, β_0 … β_{N-2}]   (flexible, nq = 2N+1)
+//   q = [α_0 … α_{N-2}, θ_N, p_x, p_z]                   (rigid,    nq = N+2)
+// Absolute link angles θ_i (i = 0 … N-1, link N-1 carries θ_N): θ_i = θ_N + Σ_{k=i}^{N-2} α_k.
+// Internally the dynamics is assembled in "absolute" coordinates z = [θ_0 … θ_{N-1}, p_x, p_z]
+// and mapped to q_1 = [α, θ_N, p] by the constant T (z = T q_1, the paper's C with V and F);
+// applying T from the right is a running sum over the θ columns.
+//
+// Points along the body (2N+1 candidate contact points, also the point masses): point k sits at
+// arc length k·l from the tail tip: k = 0 tail tip, k = 2i+1 COM of link i, k = 2j+2 joint j
+// (rotor j), k = 2N head tip. Position: [x_k, z_k] = [p_x, p_z] + Σ_i c_ki [cos θ_i, sin θ_i] with
+// the constant coefficients c (the paper's H, A, B matrices, x_0 eliminated through p).
+#pragma once
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
+#include "pedalwave/model/params.hpp"
+
+namespace pedalwave::model {
+
+using Eigen::MatrixXd;
+using Eigen::VectorXd;
+using Vec2 = Eigen::Vector2d;
+
+class Model {
+ public:
+  // Validates p (throws std::invalid_argument) and precomputes the constant matrices.
+  explicit Model(const Params& p);
+
+  const Params& params() const { return p_; }
+  int N() const { return p_.N; }
+  int joints() const { return p_.N - 1; }             // N-1
+  int nq() const { return nq_; }                      // 2N+1 flexible, N+2 rigid
+  int nq1() const { return p_.N + 2; }                // body coordinates
+  int points() const { return 2 * p_.N + 1; }         // candidate contact points
+  bool flexible() const { return p_.joints == JointModel::kFlexible; }
+
+  // Indices into q.
+  int i_alpha(int j) const { return j; }
+  int i_theta_N() const { return p_.N - 1; }
+  int i_px() const { return p_.N; }
+  int i_pz() const { return p_.N + 1; }
+  int i_beta(int j) const { return p_.N + 2 + j; }    // flexible only
+
+  // Point indices.
+  static int point_tail() { return 0; }
+  static int point_com(int i) { return 2 * i + 1; }
+  static int point_joint(int j) { return 2 * j + 2; }
+  int point_head() const { return 2 * p_.N; }
+
+  // Constants.
+  const MatrixXd& point_coeff() const { return c_; }    // (2N+1)×N [m]
+  const VectorXd& point_mass() const { return m_pt_; }  // (2N+1) [kg]
+  const MatrixXd& W() const { return W_; }              // N×N Σ_b m_b c_b c_bᵀ [kg·m²]
+  const VectorXd& s() const { return s_; }              // N   Σ_b m_b c_b [kg·m]
+  double total_mass() const { return m_total_; }        // [kg]
+  const VectorXd& K() const { return K_; }              // (N-1) [N·m/rad]
+  const MatrixXd& L() const { return L_; }              // (N-1)×nq rotor spin map θ̇^r = L q̇
+  const MatrixXd& M_spin() const { return M_spin_; }    // nq×nq  I_r Lᵀ L [kg·m²]
+
+ private:
+  Params p_;
+  int nq_;
+  MatrixXd c_;
+  VectorXd m_pt_;
+  MatrixXd W_;
+  VectorXd s_;
+  double m_total_;
+  VectorXd K_;
+  MatrixXd L_;
+  MatrixXd M_spin_;
+};
+
+// Workspace: sized once from a Model; every evaluation writes here and allocates nothing.
+struct Data {
+  explicit Data(const Model& m);
+
+  // Kinematics (update_kinematics)
+  VectorXd theta;       // absolute link angles θ [rad], (N)
+  VectorXd theta_dot;   // θ̇ [rad/s], (N)
+  VectorXd cos_t, sin_t;  // cos θ, sin θ, (N)
+  // Dynamics
+  MatrixXd Mz;          // mass matrix in absolute coordinates z [SI], (N+2)²
+  MatrixXd M;           // mass matrix in q [SI], nq×nq
+  VectorXd coriolis;    // c(q, q̇) [N or N·m], (nq)
+  VectorXd gravity;     // G(q), (nq)
+  VectorXd spring;      // K_T q, (nq)
+  VectorXd bias;        // coriolis + gravity + spring, (nq)
+  VectorXd rhs;         // B u + Q − bias, (nq)
+  VectorXd gz;          // scratch generalized force in z, (N+2)
+  Eigen::LLT<MatrixXd> llt;  // factorization of M, sized nq
+  bool mass_valid = false;   // M and llt hold the current q
+};
+
+}  // namespace pedalwave::model

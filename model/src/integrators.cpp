@@ -1,0 +1,236 @@
+#include "pedalwave/model/integrators.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace pedalwave::model {
+
+std::string_view to_string(Method m) {
+  switch (m) {
+    case Method::kExplicitEuler: return "euler";
+    case Method::kSemiImplicitEuler: return "semi_implicit_euler";
+    case Method::kImplicitVelocity: return "implicit_velocity";
+    case Method::kRK4: return "rk4";
+    case Method::kDormandPrince45: return "dopri45";
+  }
+  return "?";
+}
+
+Method parse_method(std::string_view name) {
+  for (Method m : {Method::kExplicitEuler, Method::kSemiImplicitEuler, Method::kImplicitVelocity,
+                   Method::kRK4, Method::kDormandPrince45})
+    if (name == to_string(m)) return m;
+  throw std::invalid_argument("integrator '" + std::string(name) +
+                              "' is unknown: expected one of euler, semi_implicit_euler, "
+                              "implicit_velocity, rk4, dopri45");
+}
+
+bool is_adaptive(Method m) { return m == Method::kDormandPrince45; }
+
+std::string_view to_string(StepStatus s) {
+  switch (s) {
+    case StepStatus::kOk: return "ok";
+    case StepStatus::kEvalFailed: return "evaluation failed (mass matrix not positive definite)";
+    case StepStatus::kNonFinite: return "state became NaN/Inf (unstable step?)";
+    case StepStatus::kStepTooSmall: return "adaptive step fell below h_min (stiff or discontinuous)";
+  }
+  return "?";
+}
+
+void validate(const IntegratorOptions& o) {
+  auto bad = [](const char* what, double v, const char* expected) {
+    std::ostringstream os;
+    os << "integrator option " << what << " = " << v << ": " << expected;
+    throw std::invalid_argument(os.str());
+  };
+  if (!(o.h > 0) || !std::isfinite(o.h)) bad("h", o.h, "step must be finite and > 0 [s]");
+  if (is_adaptive(o.method)) {
+    if (!(o.rtol > 0)) bad("rtol", o.rtol, "must be > 0");
+    if (!(o.atol > 0)) bad("atol", o.atol, "must be > 0");
+    if (!(o.h_min > 0) || o.h_min > o.h_max) bad("h_min", o.h_min, "must be > 0 and <= h_max");
+  }
+}
+
+Integrator::Integrator(int nq, const IntegratorOptions& o)
+    : o_(o), nq_(nq), h_adapt_(o.h), lu_(nq) {
+  validate(o_);
+  const int n = 2 * nq;
+  for (auto* v : {&y_, &y_new_, &tmp_}) *v = VectorXd::Zero(n);
+  for (auto& k : k_) k = VectorXd::Zero(n);
+  for (auto* v : {&a_, &qtmp_, &vtmp_, &dv_}) *v = VectorXd::Zero(nq);
+  imp_.M = MatrixXd::Zero(nq, nq);
+  imp_.F = VectorXd::Zero(nq);
+  imp_.dFdq = MatrixXd::Zero(nq, nq);
+  imp_.dFdv = MatrixXd::Zero(nq, nq);
+  A_ = MatrixXd::Zero(nq, nq);
+}
+
+bool Integrator::eval(System& sys, double t, const VectorXd& y, VectorXd& f) {
+  ++stats_.evaluations;
+  qtmp_ = y.head(nq_);
+  vtmp_ = y.tail(nq_);
+  if (!sys.acceleration(t, qtmp_, vtmp_, a_)) return false;
+  f.head(nq_) = vtmp_;
+  f.tail(nq_) = a_;
+  return true;
+}
+
+namespace {
+bool finite(const VectorXd& x) { return x.allFinite(); }
+}  // namespace
+
+StepStatus Integrator::step(System& sys, double t, double h, VectorXd& q, VectorXd& v) {
+  switch (o_.method) {
+    case Method::kExplicitEuler: {
+      ++stats_.evaluations;
+      if (!sys.acceleration(t, q, v, a_)) return StepStatus::kEvalFailed;
+      q += h * v;
+      v += h * a_;
+      break;
+    }
+    case Method::kSemiImplicitEuler: {
+      ++stats_.evaluations;
+      if (!sys.acceleration(t, q, v, a_)) return StepStatus::kEvalFailed;
+      v += h * a_;
+      q += h * v;
+      break;
+    }
+    case Method::kImplicitVelocity: {
+      ++stats_.evaluations;
+      if (!sys.implicit_terms(t, q, v, imp_)) return StepStatus::kEvalFailed;
+      // Linearized backward Euler in v: (M − h D_v − h² D_q) Δv = h (F + h D_q v).
+      A_ = imp_.M - h * imp_.dFdv - (h * h) * imp_.dFdq;
+      dv_.noalias() = imp_.dFdq * v;
+      dv_ = h * (imp_.F + h * dv_);
+      lu_.compute(A_);
+      vtmp_ = lu_.solve(dv_);
+      v += vtmp_;
+      q += h * v;
+      break;
+    }
+    case Method::kRK4: {
+      y_.head(nq_) = q;
+      y_.tail(nq_) = v;
+      if (!eval(sys, t, y_, k_[0])) return StepStatus::kEvalFailed;
+      tmp_ = y_ + 0.5 * h * k_[0];
+      if (!eval(sys, t + 0.5 * h, tmp_, k_[1])) return StepStatus::kEvalFailed;
+      tmp_ = y_ + 0.5 * h * k_[1];
+      if (!eval(sys, t + 0.5 * h, tmp_, k_[2])) return StepStatus::kEvalFailed;
+      tmp_ = y_ + h * k_[2];
+      if (!eval(sys, t + h, tmp_, k_[3])) return StepStatus::kEvalFailed;
+      y_ += (h / 6.0) * (k_[0] + 2.0 * k_[1] + 2.0 * k_[2] + k_[3]);
+      q = y_.head(nq_);
+      v = y_.tail(nq_);
+      break;
+    }
+    case Method::kDormandPrince45: {
+      y_.head(nq_) = q;
+      y_.tail(nq_) = v;
+      fsal_valid_ = false;
+      double err = 0.0;
+      const StepStatus s = step_dopri(sys, t, h, err);
+      if (s != StepStatus::kOk) return s;
+      q = y_new_.head(nq_);
+      v = y_new_.tail(nq_);
+      break;
+    }
+  }
+  ++stats_.steps;
+  stats_.h_last = h;
+  return (finite(q) && finite(v)) ? StepStatus::kOk : StepStatus::kNonFinite;
+}
+
+// Dormand–Prince 5(4) with FSAL: y_ holds the start state; y_new_ the 5th-order result; err the
+// scaled RMS error estimate (accept when <= 1).
+StepStatus Integrator::step_dopri(System& sys, double t, double h, double& err) {
+  static constexpr double c2 = 1.0 / 5, c3 = 3.0 / 10, c4 = 4.0 / 5, c5 = 8.0 / 9;
+  static constexpr double a21 = 1.0 / 5;
+  static constexpr double a31 = 3.0 / 40, a32 = 9.0 / 40;
+  static constexpr double a41 = 44.0 / 45, a42 = -56.0 / 15, a43 = 32.0 / 9;
+  static constexpr double a51 = 19372.0 / 6561, a52 = -25360.0 / 2187, a53 = 64448.0 / 6561,
+                          a54 = -212.0 / 729;
+  static constexpr double a61 = 9017.0 / 3168, a62 = -355.0 / 33, a63 = 46732.0 / 5247,
+                          a64 = 49.0 / 176, a65 = -5103.0 / 18656;
+  static constexpr double b1 = 35.0 / 384, b3 = 500.0 / 1113, b4 = 125.0 / 192,
+                          b5 = -2187.0 / 6784, b6 = 11.0 / 84;
+  static constexpr double e1 = 71.0 / 57600, e3 = -71.0 / 16695, e4 = 71.0 / 1920,
+                          e5 = -17253.0 / 339200, e6 = 22.0 / 525, e7 = -1.0 / 40;
+  if (!fsal_valid_) {
+    if (!eval(sys, t, y_, k_[0])) return StepStatus::kEvalFailed;
+  }
+  tmp_ = y_ + h * a21 * k_[0];
+  if (!eval(sys, t + c2 * h, tmp_, k_[1])) return StepStatus::kEvalFailed;
+  tmp_ = y_ + h * (a31 * k_[0] + a32 * k_[1]);
+  if (!eval(sys, t + c3 * h, tmp_, k_[2])) return StepStatus::kEvalFailed;
+  tmp_ = y_ + h * (a41 * k_[0] + a42 * k_[1] + a43 * k_[2]);
+  if (!eval(sys, t + c4 * h, tmp_, k_[3])) return StepStatus::kEvalFailed;
+  tmp_ = y_ + h * (a51 * k_[0] + a52 * k_[1] + a53 * k_[2] + a54 * k_[3]);
+  if (!eval(sys, t + c5 * h, tmp_, k_[4])) return StepStatus::kEvalFailed;
+  tmp_ = y_ + h * (a61 * k_[0] + a62 * k_[1] + a63 * k_[2] + a64 * k_[3] + a65 * k_[4]);
+  if (!eval(sys, t + h, tmp_, k_[5])) return StepStatus::kEvalFailed;
+  y_new_ = y_ + h * (b1 * k_[0] + b3 * k_[2] + b4 * k_[3] + b5 * k_[4] + b6 * k_[5]);
+  if (!eval(sys, t + h, y_new_, k_[6])) return StepStatus::kEvalFailed;
+  tmp_ = h * (e1 * k_[0] + e3 * k_[2] + e4 * k_[3] + e5 * k_[4] + e6 * k_[5] + e7 * k_[6]);
+  double sum = 0.0;
+  const Eigen::Index n = y_.size();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double sc = o_.atol + o_.rtol * std::max(std::abs(y_(i)), std::abs(y_new_(i)));
+    const double r = tmp_(i) / sc;
+    sum += r * r;
+  }
+  err = std::sqrt(sum / static_cast<double>(n));
+  if (!std::isfinite(err)) err = 1e10;
+  return StepStatus::kOk;
+}
+
+StepStatus Integrator::advance(System& sys, double& t, double t_end, VectorXd& q, VectorXd& v) {
+  if (!is_adaptive(o_.method)) {
+    while (t_end - t > 1e-12 * std::max(1.0, std::abs(t_end))) {
+      const double h = std::min(o_.h, t_end - t);
+      const StepStatus s = step(sys, t, h, q, v);
+      if (s != StepStatus::kOk) return s;
+      t += h;
+    }
+    t = t_end;
+    return StepStatus::kOk;
+  }
+  // Adaptive: standard controller h_new = h · clamp(0.9 err^(−1/5), 0.2, 5).
+  y_.head(nq_) = q;
+  y_.tail(nq_) = v;
+  fsal_valid_ = false;
+  while (t_end - t > 1e-12 * std::max(1.0, std::abs(t_end))) {
+    double h = std::min({h_adapt_, o_.h_max, t_end - t});
+    const bool clipped = h < h_adapt_;
+    double err = 0.0;
+    const StepStatus s = step_dopri(sys, t, h, err);
+    if (s != StepStatus::kOk) return s;
+    const double fac = std::clamp(0.9 * std::pow(std::max(err, 1e-10), -0.2), 0.2, 5.0);
+    if (err <= 1.0) {
+      t += h;
+      y_ = y_new_;
+      k_[0] = k_[6];  // FSAL
+      fsal_valid_ = true;
+      ++stats_.steps;
+      stats_.h_last = h;
+      if (!y_.allFinite()) return StepStatus::kNonFinite;
+      if (!clipped) h_adapt_ = std::min(h * fac, o_.h_max);
+    } else {
+      ++stats_.rejected;
+      fsal_valid_ = true;  // k_[0] still belongs to y_
+      h_adapt_ = h * std::min(fac, 1.0);
+      if (h_adapt_ < o_.h_min) {
+        q = y_.head(nq_);
+        v = y_.tail(nq_);
+        return StepStatus::kStepTooSmall;
+      }
+    }
+  }
+  t = t_end;
+  q = y_.head(nq_);
+  v = y_.tail(nq_);
+  return StepStatus::kOk;
+}
+
+}  // namespace pedalwave::model

@@ -1,0 +1,63 @@
+#include "pedalwave/model/model.hpp"
+
+#include <algorithm>
+
+namespace pedalwave::model {
+
+Model::Model(const Params& p) : p_(p) {
+  validate(p_);
+  const int N = p_.N;
+  const int P = 2 * N + 1;
+  nq_ = flexible() ? 2 * N + 1 : N + 2;
+
+  // Point k sits at arc length k·l from the tail tip; link i spans [2il, 2(i+1)l]. Its position
+  // relative to the tail tip is Σ_i a_ki [cos θ_i, sin θ_i] with a_ki = clamp(k l − 2 i l, 0, 2l).
+  MatrixXd a(P, N);
+  for (int k = 0; k < P; ++k)
+    for (int i = 0; i < N; ++i) a(k, i) = std::clamp(k * p_.l - 2.0 * i * p_.l, 0.0, 2.0 * p_.l);
+  // Eliminate the tail tip through p = mean of the link COMs (P-2..P-5).
+  Eigen::RowVectorXd mean_com = Eigen::RowVectorXd::Zero(N);
+  for (int i = 0; i < N; ++i) mean_com += a.row(point_com(i));
+  mean_com /= N;
+  c_ = a.rowwise() - mean_com;
+
+  // Point masses: link COMs carry m_l, joints carry the rotors m_r, tips nothing.
+  m_pt_ = VectorXd::Zero(P);
+  for (int i = 0; i < N; ++i) m_pt_(point_com(i)) = p_.m_l;
+  for (int j = 0; j < N - 1; ++j) m_pt_(point_joint(j)) = p_.m_r;
+  m_total_ = m_pt_.sum();
+  W_ = c_.transpose() * m_pt_.asDiagonal() * c_;
+  s_ = c_.transpose() * m_pt_;
+
+  K_.resize(N - 1);
+  for (int j = 0; j < N - 1; ++j) K_(j) = p_.stiffness(j);
+
+  // Rotor spin rate θ̇^r_j = θ̇_j − n β̇_j (stator on link j); θ_j = θ_N + Σ_{k≥j} α_k.
+  L_ = MatrixXd::Zero(N - 1, nq_);
+  for (int j = 0; j < N - 1; ++j) {
+    for (int k = j; k < N - 1; ++k) L_(j, i_alpha(k)) = 1.0;
+    L_(j, i_theta_N()) = 1.0;
+    if (flexible())
+      L_(j, i_beta(j)) = -p_.n;
+    else if (p_.rigid_variant == RigidVariant::kExactLimit)
+      L_(j, i_alpha(j)) -= p_.n;  // β ≡ α
+  }
+  M_spin_ = p_.I_r * L_.transpose() * L_;
+}
+
+Data::Data(const Model& m)
+    : theta(VectorXd::Zero(m.N())),
+      theta_dot(VectorXd::Zero(m.N())),
+      cos_t(VectorXd::Ones(m.N())),
+      sin_t(VectorXd::Zero(m.N())),
+      Mz(MatrixXd::Zero(m.nq1(), m.nq1())),
+      M(MatrixXd::Zero(m.nq(), m.nq())),
+      coriolis(VectorXd::Zero(m.nq())),
+      gravity(VectorXd::Zero(m.nq())),
+      spring(VectorXd::Zero(m.nq())),
+      bias(VectorXd::Zero(m.nq())),
+      rhs(VectorXd::Zero(m.nq())),
+      gz(VectorXd::Zero(m.nq1())),
+      llt(m.nq()) {}
+
+}  // namespace pedalwave::model

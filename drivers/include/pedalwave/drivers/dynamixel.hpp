@@ -1,0 +1,140 @@
+// DYNAMIXEL Protocol 2.0 packet codec and the register map of the pedalwave modules on a serial
+// servo bus (drivers/PROTOCOL.md §3). Pure functions on caller-provided buffers: allocation-free,
+// noexcept, no I/O.
+//
+// Packet: FF FF FD 00 | ID | LEN_L LEN_H | INST | [ERR] | PARAM… | CRC_L CRC_H
+//   LEN = bytes after the length field (instruction, error, parameters after stuffing, CRC);
+//   byte stuffing over INST…PARAM: every "FF FF FD" gets an extra FD ("FF FF FD FD");
+//   CRC-16 (poly 0x8005, init 0, crc16_dxl) over everything from the header up to the CRC, as sent
+//   (stuffed).
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include "pedalwave/drivers/io.hpp"
+
+namespace pedalwave::drivers::dxl {
+
+// ---- Protocol constants -------------------------------------------------------------------------
+inline constexpr std::uint8_t kBroadcastId = 0xFE;
+inline constexpr std::uint8_t kInstPing = 0x01;
+inline constexpr std::uint8_t kInstRead = 0x02;
+inline constexpr std::uint8_t kInstWrite = 0x03;
+inline constexpr std::uint8_t kInstStatus = 0x55;
+inline constexpr std::uint8_t kInstSyncRead = 0x82;
+inline constexpr std::uint8_t kInstSyncWrite = 0x83;
+// Error field of a status packet: bit 7 alert, bits 0…6 error number.
+inline constexpr std::uint8_t kErrAlert = 0x80;
+inline constexpr std::uint8_t kErrResultFail = 0x01;
+inline constexpr std::uint8_t kErrInstruction = 0x02;
+inline constexpr std::uint8_t kErrCrc = 0x03;
+inline constexpr std::uint8_t kErrDataRange = 0x04;
+inline constexpr std::uint8_t kErrDataLength = 0x05;
+inline constexpr std::uint8_t kErrDataLimit = 0x06;
+inline constexpr std::uint8_t kErrAccess = 0x07;
+
+inline constexpr std::size_t kHeaderSize = 7;   // FF FF FD 00 ID LEN_L LEN_H
+inline constexpr std::size_t kMaxPacket = 1024; // largest packet we build or accept [bytes]
+inline constexpr std::size_t kMaxParams = kMaxPacket - kHeaderSize - 3;
+
+// ---- Register map of a pedalwave SEA module (little-endian; PROTOCOL.md §3.2) -------------------
+inline constexpr std::uint16_t kRegModelNumber = 0;       // u16 R   0x5057 ("PW")
+inline constexpr std::uint16_t kRegFirmware = 2;          // u8  R
+inline constexpr std::uint16_t kRegId = 7;                // u8  RW  1…252
+inline constexpr std::uint16_t kRegBaud = 8;              // u8  RW  index (PROTOCOL.md)
+inline constexpr std::uint16_t kRegReturnDelay = 9;       // u8  RW  [2 µs]
+inline constexpr std::uint16_t kRegCommandTimeout = 10;   // u16 RW  [ms], 0 = never
+inline constexpr std::uint16_t kRegTorqueEnable = 64;     // u8  RW
+inline constexpr std::uint16_t kRegSyncCounter = 96;      // u8  W   cycle counter c (broadcast)
+inline constexpr std::uint16_t kRegCommand = 100;         // command block, kCommandBlockSize bytes
+inline constexpr std::uint16_t kRegFeedback = 120;        // feedback block, kFeedbackBlockSize
+inline constexpr std::uint16_t kModelNumber = 0x5057;
+// Command block offsets: τ i16 [1e-3 N·m], β_ref i16 [1e-4 rad], β̇_ref i16 [1e-3 rad/s],
+// kp u16 [1e-2 N·m/rad], kd u16 [1e-3 N·m·s/rad], flags u8 (bit 0 torque off), counter u8 (c).
+inline constexpr std::size_t kCommandBlockSize = 12;
+// Feedback block offsets: β i16 [1e-4 rad], β̇ i16 [1e-3 rad/s], deflection i16 [2e-5 rad],
+// status u8 (bit 0 saturated, 1 over-temp, 2 encoder fault, 3 torque off), echo u8 (last c).
+inline constexpr std::size_t kFeedbackBlockSize = 8;
+
+// ---- Results --------------------------------------------------------------------------------------
+enum class DxlStatus : std::uint8_t {
+  kOk = 0,
+  kNeedMore,      // (parser) the buffer holds the start of a packet, wait for more bytes
+  kGarbage,       // (parser) bytes before the next header: `consumed` of them can be dropped
+  kMalformed,     // (parser) header found but length impossible / bad stuffing / wrong layout
+  kChecksum,      // (parser) CRC mismatch
+  kOverflow,      // (builder/unstuff) output buffer too small
+  kBadArgument,   // (builder) invalid id/length
+};
+
+// A parsed packet. `params` holds the unstuffed parameters (after the error byte for status).
+struct Packet {
+  std::uint8_t id = 0;                          // packet ID [-]
+  std::uint8_t instruction = 0;                 // instruction (0x55 for a status packet) [-]
+  std::uint8_t error = 0;                       // error field (status packets only) [-]
+  std::size_t param_count = 0;                  // number of valid bytes in params [-]
+  std::array<std::uint8_t, kMaxParams> params{};
+};
+
+// Byte stuffing of `in` into `out` ("FF FF FD" → "FF FF FD FD").
+DxlStatus stuff(std::span<const std::uint8_t> in, std::span<std::uint8_t> out,
+                std::size_t& out_len) noexcept;
+// Inverse: removes the FD that follows every "FF FF FD". A "FF FF FD" followed by anything but FD
+// (or by the end of the data) is malformed.
+DxlStatus unstuff(std::span<const std::uint8_t> in, std::span<std::uint8_t> out,
+                  std::size_t& out_len) noexcept;
+
+// Instruction packet: header, id, instruction, `params` (stuffed here), CRC.
+DxlStatus build_instruction(std::uint8_t id, std::uint8_t instruction,
+                            std::span<const std::uint8_t> params, std::span<std::uint8_t> out,
+                            std::size_t& out_len) noexcept;
+// Status packet (what a module sends): instruction 0x55, error, params.
+DxlStatus build_status(std::uint8_t id, std::uint8_t error, std::span<const std::uint8_t> params,
+                       std::span<std::uint8_t> out, std::size_t& out_len) noexcept;
+// Sync Read (0x82, broadcast) of `length` bytes at `address` from `ids`.
+DxlStatus build_sync_read(std::uint16_t address, std::uint16_t length,
+                          std::span<const std::uint8_t> ids, std::span<std::uint8_t> out,
+                          std::size_t& out_len) noexcept;
+// Sync Write (0x83, broadcast): `data` holds ids.size() blocks of `length` bytes, in id order.
+DxlStatus build_sync_write(std::uint16_t address, std::uint16_t length,
+                           std::span<const std::uint8_t> ids, std::span<const std::uint8_t> data,
+                           std::span<std::uint8_t> out, std::size_t& out_len) noexcept;
+
+// Parse the packet at the start of `in`. kOk/kChecksum/kMalformed/kGarbage set `consumed` to the
+// bytes to drop; kNeedMore sets it to 0. On kChecksum `pkt.id` holds the (unverified) id byte.
+DxlStatus parse_packet(std::span<const std::uint8_t> in, Packet& pkt,
+                       std::size_t& consumed) noexcept;
+
+// Register blocks ↔ plain values (same scalings as CAN, wire.hpp).
+struct CommandBlock {
+  double tau = 0.0;           // feed-forward torque [N·m]
+  double beta_ref = 0.0;      // motor angle set-point [rad]
+  double beta_dot_ref = 0.0;  // motor rate set-point [rad/s]
+  double kp = 0.0;            // stiffness gain [N·m/rad]
+  double kd = 0.0;            // damping gain [N·m·s/rad]
+  bool torque_off = false;    // safe torque off
+  std::uint8_t counter = 0;   // cycle counter c the command was computed in [-]
+};
+struct FeedbackBlock {
+  double beta = 0.0;          // motor output angle β [rad]
+  double beta_dot = 0.0;      // motor output rate β̇ [rad/s]
+  double deflection = 0.0;    // spring deflection β − α [rad]
+  std::uint16_t status = 0;   // module StatusBits [-]
+  std::uint8_t echo = 0;      // last sync counter c the module latched [-]
+};
+// Encoders return wire::QuantFlag bits (0 = exact range). A NaN command encodes torque-off.
+std::uint8_t encode_command_block(const CommandBlock& c, std::uint8_t* out12) noexcept;
+void decode_command_block(const std::uint8_t* in12, CommandBlock& c) noexcept;
+std::uint8_t encode_feedback_block(const FeedbackBlock& f, std::uint8_t* out8) noexcept;
+void decode_feedback_block(const std::uint8_t* in8, FeedbackBlock& f) noexcept;
+
+// Worst-case size of a packet whose unstuffed instruction+error+parameter region has n bytes:
+// header 7 + n + ⌊n/3⌋ stuffing + CRC 2.
+inline constexpr std::size_t worst_packet_size(std::size_t n) noexcept {
+  return kHeaderSize + n + n / 3 + 2;
+}
+
+}  // namespace pedalwave::drivers::dxl

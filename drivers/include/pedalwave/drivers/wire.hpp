@@ -1,0 +1,105 @@
+// Wire representation shared by the CAN and the serial module protocols (drivers/PROTOCOL.md §1):
+// fixed-point scalings, saturation, little-endian byte access and the module status nibble.
+// Pure, allocation-free, noexcept.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+#include "pedalwave/drivers/io.hpp"
+
+namespace pedalwave::drivers::wire {
+
+// Resolution (value of one LSB) of each quantity on the wire. Signed quantities are int16 in
+// [-32767, 32767] (−32768 is never sent), gains are uint16 in [0, 65535].
+inline constexpr double kBetaLsb = 1e-4;        // motor angle β [rad]; range ±3.2767 rad
+inline constexpr double kBetaDotLsb = 1e-3;     // motor rate β̇ [rad/s]; range ±32.767 rad/s
+inline constexpr double kDeflectionLsb = 2e-5;  // spring deflection β−α [rad]; range ±0.65534 rad
+inline constexpr double kTauLsb = 1e-3;         // feed-forward torque [N·m]; range ±32.767 N·m
+inline constexpr double kKpLsb = 1e-2;          // stiffness gain [N·m/rad]; range 0…655.35
+inline constexpr double kKdLsb = 1e-3;          // damping gain [N·m·s/rad]; range 0…65.535
+
+// Flags an encoder raises while quantizing (accumulated with |=).
+enum QuantFlag : std::uint8_t {
+  kQuantOk = 0,
+  kQuantClamped = 1u << 0,    // value outside the representable range: saturated
+  kQuantNotFinite = 1u << 1,  // NaN/Inf: sent as 0
+};
+
+// round(v / lsb) saturated to [-32767, 32767]; NaN/Inf → 0.
+inline std::int16_t to_i16(double v, double lsb, std::uint8_t& flags) noexcept {
+  if (!std::isfinite(v)) {
+    flags |= kQuantNotFinite;
+    return 0;
+  }
+  const double r = std::nearbyint(v / lsb);
+  if (r > 32767.0) {
+    flags |= kQuantClamped;
+    return 32767;
+  }
+  if (r < -32767.0) {
+    flags |= kQuantClamped;
+    return -32767;
+  }
+  return static_cast<std::int16_t>(r);
+}
+
+// round(v / lsb) saturated to [0, 65535]; NaN/Inf → 0.
+inline std::uint16_t to_u16(double v, double lsb, std::uint8_t& flags) noexcept {
+  if (!std::isfinite(v)) {
+    flags |= kQuantNotFinite;
+    return 0;
+  }
+  const double r = std::nearbyint(v / lsb);
+  if (r > 65535.0) {
+    flags |= kQuantClamped;
+    return 65535;
+  }
+  if (r < 0.0) {
+    flags |= kQuantClamped;
+    return 0;
+  }
+  return static_cast<std::uint16_t>(r);
+}
+
+inline double from_i16(std::int16_t raw, double lsb) noexcept { return raw * lsb; }
+inline double from_u16(std::uint16_t raw, double lsb) noexcept { return raw * lsb; }
+
+// Little-endian access.
+inline void put_u16(std::uint8_t* p, std::uint16_t v) noexcept {
+  p[0] = static_cast<std::uint8_t>(v & 0xFFu);
+  p[1] = static_cast<std::uint8_t>(v >> 8);
+}
+inline void put_i16(std::uint8_t* p, std::int16_t v) noexcept {
+  put_u16(p, static_cast<std::uint16_t>(v));
+}
+inline std::uint16_t get_u16(const std::uint8_t* p) noexcept {
+  return static_cast<std::uint16_t>(p[0] | (p[1] << 8));
+}
+inline std::int16_t get_i16(const std::uint8_t* p) noexcept {
+  return static_cast<std::int16_t>(get_u16(p));
+}
+
+// Module status nibble (4 bits) ↔ StatusBit mask. Bit 0 saturated, 1 over-temperature,
+// 2 encoder fault, 3 torque off. Other StatusBits are the host's and never go on the wire.
+inline std::uint8_t pack_module_status(std::uint16_t status) noexcept {
+  std::uint8_t n = 0;
+  if (status & kStatusSaturated) n |= 1u << 0;
+  if (status & kStatusOverTemp) n |= 1u << 1;
+  if (status & kStatusEncoderFault) n |= 1u << 2;
+  if (status & kStatusTorqueOff) n |= 1u << 3;
+  return n;
+}
+inline std::uint16_t unpack_module_status(std::uint8_t nibble) noexcept {
+  std::uint16_t s = 0;
+  if (nibble & (1u << 0)) s |= kStatusSaturated;
+  if (nibble & (1u << 1)) s |= kStatusOverTemp;
+  if (nibble & (1u << 2)) s |= kStatusEncoderFault;
+  if (nibble & (1u << 3)) s |= kStatusTorqueOff;
+  return s;
+}
+// The StatusBits a module may report itself.
+inline constexpr std::uint16_t kModuleStatusMask =
+    kStatusSaturated | kStatusOverTemp | kStatusEncoderFault | kStatusTorqueOff;
+
+}  // namespace pedalwave::drivers::wire

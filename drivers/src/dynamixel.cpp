@@ -1,0 +1,235 @@
+#include "pedalwave/drivers/dynamixel.hpp"
+
+#include <cstring>
+
+#include "pedalwave/drivers/crc.hpp"
+#include "pedalwave/drivers/wire.hpp"
+
+namespace pedalwave::drivers::dxl {
+namespace {
+
+constexpr std::uint8_t kHeader[4] = {0xFF, 0xFF, 0xFD, 0x00};
+
+// Writes header, id, length, the stuffed body and the CRC. body = [inst, (err), params...] given
+// as two pieces (a small prefix and the parameters) so no temporary buffer is needed.
+DxlStatus build_packet(std::uint8_t id, std::span<const std::uint8_t> prefix,
+                       std::span<const std::uint8_t> params, std::span<std::uint8_t> out,
+                       std::size_t& out_len) noexcept {
+  out_len = 0;
+  if (id == 0xFF || id == 0xFD) return DxlStatus::kBadArgument;
+  if (out.size() < kHeaderSize + prefix.size() + 2) return DxlStatus::kOverflow;
+  std::memcpy(out.data(), kHeader, 4);
+  out[4] = id;
+  // Stuff prefix and params as one stream (a pattern may straddle the two pieces).
+  std::size_t n = kHeaderSize;
+  int ff_run = 0;  // number of consecutive 0xFF just emitted (capped at 2)
+  auto emit = [&](std::uint8_t b) noexcept -> bool {
+    if (n >= out.size()) return false;
+    out[n++] = b;
+    return true;
+  };
+  auto push = [&](std::uint8_t b) noexcept -> bool {
+    if (!emit(b)) return false;
+    if (b == 0xFD && ff_run >= 2) {
+      if (!emit(0xFD)) return false;
+      ff_run = 0;
+      return true;
+    }
+    ff_run = (b == 0xFF) ? (ff_run < 2 ? ff_run + 1 : 2) : 0;
+    return true;
+  };
+  for (std::uint8_t b : prefix)
+    if (!push(b)) return DxlStatus::kOverflow;
+  for (std::uint8_t b : params)
+    if (!push(b)) return DxlStatus::kOverflow;
+  const std::size_t len = (n - kHeaderSize) + 2;  // body + CRC
+  if (len > 0xFFFF || n + 2 > out.size() || n + 2 > kMaxPacket) return DxlStatus::kOverflow;
+  wire::put_u16(out.data() + 5, static_cast<std::uint16_t>(len));
+  const std::uint16_t crc = crc16_dxl(out.data(), n);
+  wire::put_u16(out.data() + n, crc);
+  out_len = n + 2;
+  return DxlStatus::kOk;
+}
+
+}  // namespace
+
+DxlStatus stuff(std::span<const std::uint8_t> in, std::span<std::uint8_t> out,
+                std::size_t& out_len) noexcept {
+  out_len = 0;
+  int ff_run = 0;
+  for (std::uint8_t b : in) {
+    if (out_len >= out.size()) return DxlStatus::kOverflow;
+    out[out_len++] = b;
+    if (b == 0xFD && ff_run >= 2) {
+      if (out_len >= out.size()) return DxlStatus::kOverflow;
+      out[out_len++] = 0xFD;
+      ff_run = 0;
+      continue;
+    }
+    ff_run = (b == 0xFF) ? (ff_run < 2 ? ff_run + 1 : 2) : 0;
+  }
+  return DxlStatus::kOk;
+}
+
+DxlStatus unstuff(std::span<const std::uint8_t> in, std::span<std::uint8_t> out,
+                  std::size_t& out_len) noexcept {
+  out_len = 0;
+  int ff_run = 0;
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const std::uint8_t b = in[i];
+    if (out_len >= out.size()) return DxlStatus::kOverflow;
+    out[out_len++] = b;
+    if (b == 0xFD && ff_run >= 2) {
+      // The stuffed FD must follow; drop it.
+      if (i + 1 >= in.size() || in[i + 1] != 0xFD) return DxlStatus::kMalformed;
+      ++i;
+      ff_run = 0;
+      continue;
+    }
+    ff_run = (b == 0xFF) ? (ff_run < 2 ? ff_run + 1 : 2) : 0;
+  }
+  return DxlStatus::kOk;
+}
+
+DxlStatus build_instruction(std::uint8_t id, std::uint8_t instruction,
+                            std::span<const std::uint8_t> params, std::span<std::uint8_t> out,
+                            std::size_t& out_len) noexcept {
+  const std::uint8_t prefix[1] = {instruction};
+  return build_packet(id, prefix, params, out, out_len);
+}
+
+DxlStatus build_status(std::uint8_t id, std::uint8_t error, std::span<const std::uint8_t> params,
+                       std::span<std::uint8_t> out, std::size_t& out_len) noexcept {
+  const std::uint8_t prefix[2] = {kInstStatus, error};
+  return build_packet(id, prefix, params, out, out_len);
+}
+
+DxlStatus build_sync_read(std::uint16_t address, std::uint16_t length,
+                          std::span<const std::uint8_t> ids, std::span<std::uint8_t> out,
+                          std::size_t& out_len) noexcept {
+  out_len = 0;
+  std::array<std::uint8_t, 4 + 253> p{};
+  if (ids.empty() || ids.size() > 253) return DxlStatus::kBadArgument;
+  wire::put_u16(p.data(), address);
+  wire::put_u16(p.data() + 2, length);
+  std::memcpy(p.data() + 4, ids.data(), ids.size());
+  return build_instruction(kBroadcastId, kInstSyncRead,
+                           std::span<const std::uint8_t>(p.data(), 4 + ids.size()), out, out_len);
+}
+
+DxlStatus build_sync_write(std::uint16_t address, std::uint16_t length,
+                           std::span<const std::uint8_t> ids, std::span<const std::uint8_t> data,
+                           std::span<std::uint8_t> out, std::size_t& out_len) noexcept {
+  out_len = 0;
+  if (ids.empty() || data.size() != ids.size() * length) return DxlStatus::kBadArgument;
+  const std::size_t n = 4 + ids.size() * (1u + length);
+  std::array<std::uint8_t, kMaxParams> p{};
+  if (n > p.size()) return DxlStatus::kOverflow;
+  wire::put_u16(p.data(), address);
+  wire::put_u16(p.data() + 2, length);
+  std::size_t k = 4;
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    p[k++] = ids[i];
+    std::memcpy(p.data() + k, data.data() + i * length, length);
+    k += length;
+  }
+  return build_instruction(kBroadcastId, kInstSyncWrite, std::span<const std::uint8_t>(p.data(), n),
+                           out, out_len);
+}
+
+DxlStatus parse_packet(std::span<const std::uint8_t> in, Packet& pkt,
+                       std::size_t& consumed) noexcept {
+  consumed = 0;
+  // 1. Find the header FF FF FD 00. Bytes before it are garbage.
+  std::size_t h = 0;
+  while (h + 4 <= in.size() && std::memcmp(in.data() + h, kHeader, 4) != 0) ++h;
+  if (h + 4 > in.size()) {
+    // No full header: keep a possible header prefix (up to 3 trailing bytes), drop the rest.
+    std::size_t keep = 0;
+    for (std::size_t k = std::min<std::size_t>(3, in.size()); k > 0; --k) {
+      if (std::memcmp(in.data() + in.size() - k, kHeader, k) == 0) {
+        keep = k;
+        break;
+      }
+    }
+    consumed = in.size() - keep;
+    return consumed ? DxlStatus::kGarbage : DxlStatus::kNeedMore;
+  }
+  if (h > 0) {
+    consumed = h;
+    return DxlStatus::kGarbage;
+  }
+  // 2. Id and length.
+  if (in.size() < kHeaderSize) return DxlStatus::kNeedMore;
+  const std::uint8_t id = in[4];
+  const std::size_t len = wire::get_u16(in.data() + 5);
+  if (id == 0xFF || id == 0xFD || len < 3 || kHeaderSize + len > kMaxPacket) {
+    consumed = 1;  // resynchronize on the next header
+    return DxlStatus::kMalformed;
+  }
+  const std::size_t total = kHeaderSize + len;
+  if (in.size() < total) return DxlStatus::kNeedMore;
+  consumed = total;
+  pkt.id = id;
+  // 3. CRC over the packet as sent (stuffed).
+  if (crc16_dxl(in.data(), total - 2) != wire::get_u16(in.data() + total - 2))
+    return DxlStatus::kChecksum;
+  // 4. Unstuff instruction + (error) + parameters.
+  std::array<std::uint8_t, kMaxPacket> body{};
+  std::size_t body_len = 0;
+  if (unstuff(in.subspan(kHeaderSize, len - 2), body, body_len) != DxlStatus::kOk || body_len < 1)
+    return DxlStatus::kMalformed;
+  pkt.instruction = body[0];
+  std::size_t first = 1;
+  pkt.error = 0;
+  if (pkt.instruction == kInstStatus) {
+    if (body_len < 2) return DxlStatus::kMalformed;
+    pkt.error = body[1];
+    first = 2;
+  }
+  pkt.param_count = body_len - first;
+  std::memcpy(pkt.params.data(), body.data() + first, pkt.param_count);
+  return DxlStatus::kOk;
+}
+
+std::uint8_t encode_command_block(const CommandBlock& c, std::uint8_t* o) noexcept {
+  std::uint8_t f = 0;
+  wire::put_i16(o + 0, wire::to_i16(c.tau, wire::kTauLsb, f));
+  wire::put_i16(o + 2, wire::to_i16(c.beta_ref, wire::kBetaLsb, f));
+  wire::put_i16(o + 4, wire::to_i16(c.beta_dot_ref, wire::kBetaDotLsb, f));
+  wire::put_u16(o + 6, wire::to_u16(c.kp, wire::kKpLsb, f));
+  wire::put_u16(o + 8, wire::to_u16(c.kd, wire::kKdLsb, f));
+  o[10] = (c.torque_off || (f & wire::kQuantNotFinite)) ? 0x01 : 0x00;
+  o[11] = c.counter;
+  return f;
+}
+
+void decode_command_block(const std::uint8_t* i, CommandBlock& c) noexcept {
+  c.tau = wire::from_i16(wire::get_i16(i + 0), wire::kTauLsb);
+  c.beta_ref = wire::from_i16(wire::get_i16(i + 2), wire::kBetaLsb);
+  c.beta_dot_ref = wire::from_i16(wire::get_i16(i + 4), wire::kBetaDotLsb);
+  c.kp = wire::from_u16(wire::get_u16(i + 6), wire::kKpLsb);
+  c.kd = wire::from_u16(wire::get_u16(i + 8), wire::kKdLsb);
+  c.torque_off = (i[10] & 0x01u) != 0;
+  c.counter = i[11];
+}
+
+std::uint8_t encode_feedback_block(const FeedbackBlock& fb, std::uint8_t* o) noexcept {
+  std::uint8_t f = 0;
+  wire::put_i16(o + 0, wire::to_i16(fb.beta, wire::kBetaLsb, f));
+  wire::put_i16(o + 2, wire::to_i16(fb.beta_dot, wire::kBetaDotLsb, f));
+  wire::put_i16(o + 4, wire::to_i16(fb.deflection, wire::kDeflectionLsb, f));
+  o[6] = wire::pack_module_status(fb.status);
+  o[7] = fb.echo;
+  return f;
+}
+
+void decode_feedback_block(const std::uint8_t* i, FeedbackBlock& fb) noexcept {
+  fb.beta = wire::from_i16(wire::get_i16(i + 0), wire::kBetaLsb);
+  fb.beta_dot = wire::from_i16(wire::get_i16(i + 2), wire::kBetaDotLsb);
+  fb.deflection = wire::from_i16(wire::get_i16(i + 4), wire::kDeflectionLsb);
+  fb.status = wire::unpack_module_status(static_cast<std::uint8_t>(i[6] & 0x0Fu));
+  fb.echo = i[7];
+}
+
+}  // namespace pedalwave::drivers::dxl

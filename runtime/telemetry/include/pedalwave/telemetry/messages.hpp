@@ -1,0 +1,117 @@
+// The telemetry messages as received by a subscriber: plain C++ mirrors of the IDL types in
+// idl/Telemetry.idl (one struct per topic), owning their data. Per-joint vectors have N-1 entries.
+// These live on the monitor / recorder side only (non-real-time: they allocate).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace pedalwave::telemetry {
+
+// Reception metadata, filled by the subscriber.
+struct MessageInfo {
+  std::int64_t recv_ns = 0;           // receiver's CLOCK_MONOTONIC at take() [ns]
+  std::int64_t source_time_ns = 0;    // DDS source timestamp, writer's CLOCK_REALTIME [ns]
+  std::uint64_t publication = 0;      // DDS instance handle of the writer (changes on restart)
+};
+
+struct JointStateMsg {                // rt/pedalwave/joint_state
+  std::uint64_t seq = 0;              // cycle number [-]
+  std::int64_t stamp_ns = 0;          // robot's CLOCK_MONOTONIC at cycle wake-up [ns]
+  double t = 0.0;                     // controller time [s]
+  std::vector<double> beta;           // [rad], (N-1)
+  std::vector<double> beta_dot;       // [rad/s], (N-1)
+  std::vector<double> alpha;          // [rad], (N-1)
+  std::vector<double> deflection;     // [rad], (N-1)
+  std::vector<double> tau_sea;        // [N·m], (N-1)
+};
+
+struct ControllerStateMsg {           // rt/pedalwave/controller_state
+  std::uint64_t seq = 0;              // [-]
+  std::int64_t stamp_ns = 0;          // [ns]
+  double t = 0.0;                     // [s]
+  std::uint8_t mode = 0;              // runtime::Mode
+  std::string mode_name;
+  std::vector<double> alpha_d;        // α^d [rad], (N-1)
+  std::vector<double> pi;             // Π [rad], (N-1)
+  std::vector<double> u;              // commanded torque [N·m], (N-1)
+};
+
+struct ObserverStateMsg {             // rt/pedalwave/observer_state
+  std::uint64_t seq = 0;              // [-]
+  std::int64_t stamp_ns = 0;          // [ns]
+  std::vector<double> residual;       // [N·m], (N-1)
+  std::vector<double> tau_ext;        // [N·m], (N-1)
+  std::array<double, 6> body{};       // θ_N [rad], p_x [m], p_z [m], then their rates
+  std::uint32_t fault_flags = 0;      // bit (1 << FaultClass)
+  std::int16_t fault_joint = -1;      // 0-based, −1 none
+  double forward_speed = 0.0;         // [m/s]
+};
+
+struct LoopTimingMsg {                // rt/pedalwave/loop_timing
+  std::uint64_t seq = 0;              // [-]
+  std::int64_t stamp_ns = 0;          // [ns]
+  std::int32_t wake_latency_ns = 0;   // [ns]
+  std::int32_t t_read_ns = 0;         // [ns]
+  std::int32_t t_observe_ns = 0;      // [ns]
+  std::int32_t t_control_ns = 0;      // [ns]
+  std::int32_t t_write_ns = 0;        // [ns]
+  std::uint32_t overruns = 0;         // cumulative [-]
+  std::uint64_t ring_drops = 0;       // cumulative [-]
+};
+
+struct ModeEventMsg {                 // rt/pedalwave/mode_event
+  std::uint64_t seq = 0;              // [-]
+  std::int64_t stamp_ns = 0;          // [ns]
+  std::uint8_t from = 0, to = 0;      // runtime::Mode
+  std::string from_name, to_name, text;
+};
+
+struct FaultEventMsg {                // rt/pedalwave/fault_event
+  std::uint64_t seq = 0;              // [-]
+  std::int64_t stamp_ns = 0;          // [ns]
+  std::uint8_t fault_class = 0;       // runtime::FaultClass
+  std::string class_name;
+  std::uint8_t severity = 0;          // runtime::Severity
+  std::string severity_name;
+  std::int16_t joint = -1;            // 0-based, −1 none
+  double value = 0.0;                 // evidence value
+  double threshold = 0.0;             // threshold crossed
+  std::uint8_t mode = 0;              // mode after the event (runtime::Mode)
+  std::string text;
+};
+
+struct DescriptionMsg {               // rt/pedalwave/robot_description
+  int links = 0;                      // N [-]
+  double link_length = 0.0;           // 2l [m]
+  double link_mass = 0.0;             // m_l [kg]
+  double rotor_mass = 0.0;            // m_r [kg]
+  double rotor_inertia = 0.0;         // I_r [kg·m²]
+  double gear_ratio = 0.0;            // n [-]
+  std::vector<double> spring_stiffness;  // K_j [N·m/rad], (N-1)
+  double rate_hz = 0.0;               // control rate [Hz]
+  double joint_state_rate_hz = 0.0;   // published rates [Hz]
+  double controller_state_rate_hz = 0.0;
+  double observer_state_rate_hz = 0.0;
+  double loop_timing_rate_hz = 0.0;
+  std::string name, driver;
+};
+
+struct CommandAckMsg {                // rt/pedalwave/command_ack
+  std::uint64_t id = 0;               // echoed command id
+  std::uint8_t kind = 0;              // runtime::OperatorCommandKind
+  bool accepted = false;
+  std::int64_t stamp_ns = 0;          // robot's CLOCK_MONOTONIC [ns]
+  std::string reason;
+};
+
+struct OperatorCommandMsg {           // rt/pedalwave/command (as seen by a listener/recorder)
+  std::uint8_t kind = 0;
+  std::uint64_t id = 0;
+  double amplitude = 0.0, omega = 0.0, eta = 0.0;  // [rad], [rad/s], [rad]
+  std::string sender;
+};
+
+}  // namespace pedalwave::telemetry

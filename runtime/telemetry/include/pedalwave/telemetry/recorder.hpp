@@ -1,0 +1,61 @@
+// CsvRecorder: writes every received telemetry message to CSV, ONE FILE PER TOPIC.
+// For a path "run.csv" (or "run") the files are run.<topic>.csv, topic in joint_state,
+// controller_state, observer_state, loop_timing, mode_event, fault_event, robot_description,
+// command, command_ack. All files are created by the constructor (an unwritable path throws
+// std::runtime_error there, not mid-run); each gets its header line with its first message.
+// Every row starts with recv_ns (receiver CLOCK_MONOTONIC [ns]) and source_time_ns (writer's DDS
+// source timestamp, CLOCK_REALTIME [ns]). Per-joint columns are <field>_<j>, j = 0..N-2, with N
+// taken from the topic's first message; a later message with another joint count (robot restarted
+// with other parameters) is padded/truncated to the header and counted in width_mismatches().
+// Doubles are written in shortest round-trip form; text fields are quoted ("" escapes ").
+#pragma once
+
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <string>
+
+#include "pedalwave/telemetry/subscriber.hpp"
+
+namespace pedalwave::telemetry {
+
+class CsvRecorder final : public TelemetryListener {
+ public:
+  explicit CsvRecorder(const std::string& path);
+  ~CsvRecorder() override;
+  CsvRecorder(const CsvRecorder&) = delete;
+  CsvRecorder& operator=(const CsvRecorder&) = delete;
+
+  // The file a topic ("joint_state", ...) is written to.
+  std::string file_for(const std::string& topic) const;
+  std::uint64_t rows(const std::string& topic) const;   // data rows written so far
+  std::uint64_t width_mismatches() const { return width_mismatches_; }
+  void flush();
+
+  void on_joint_state(const JointStateMsg&, const MessageInfo&) override;
+  void on_controller_state(const ControllerStateMsg&, const MessageInfo&) override;
+  void on_observer_state(const ObserverStateMsg&, const MessageInfo&) override;
+  void on_loop_timing(const LoopTimingMsg&, const MessageInfo&) override;
+  void on_mode_event(const ModeEventMsg&, const MessageInfo&) override;
+  void on_fault_event(const FaultEventMsg&, const MessageInfo&) override;
+  void on_description(const DescriptionMsg&, const MessageInfo&) override;
+  void on_command(const OperatorCommandMsg&, const MessageInfo&) override;
+  void on_command_ack(const CommandAckMsg&, const MessageInfo&) override;
+
+ private:
+  struct File {
+    std::FILE* f = nullptr;
+    std::string path;
+    bool header_written = false;
+    int joints = 0;               // per-joint column count fixed by the header
+    std::uint64_t rows = 0;
+  };
+  File& file(const char* topic);
+  void write_row(File& f, const std::string& row);
+
+  std::string stem_;
+  std::map<std::string, File> files_;
+  std::uint64_t width_mismatches_ = 0;
+};
+
+}  // namespace pedalwave::telemetry

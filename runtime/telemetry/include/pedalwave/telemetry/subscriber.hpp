@@ -1,0 +1,69 @@
+// TelemetrySubscriber: the monitor side. Subscribes to every pedalwave topic on a domain, decodes
+// the messages (messages.hpp) and hands them to listeners on the caller's thread, inside poll().
+// Also publishes operator commands (rt/pedalwave/command) and receives their acks.
+// Reader QoS mirror the writer's (dds_telemetry.hpp): best-effort keep-last(state_history_depth)
+// on the high-rate topics, reliable transient-local on events and description (so a late
+// subscriber gets the description and the last 100 events), reliable volatile on command/ack.
+// Not thread-safe: one thread calls poll(), send_command() and the rest.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pedalwave/runtime/telemetry_sink.hpp"
+#include "pedalwave/telemetry/config.hpp"
+#include "pedalwave/telemetry/messages.hpp"
+
+namespace pedalwave::telemetry {
+
+// Receives decoded messages. Every method has an empty default.
+class TelemetryListener {
+ public:
+  virtual ~TelemetryListener() = default;
+  virtual void on_joint_state(const JointStateMsg&, const MessageInfo&) {}
+  virtual void on_controller_state(const ControllerStateMsg&, const MessageInfo&) {}
+  virtual void on_observer_state(const ObserverStateMsg&, const MessageInfo&) {}
+  virtual void on_loop_timing(const LoopTimingMsg&, const MessageInfo&) {}
+  virtual void on_mode_event(const ModeEventMsg&, const MessageInfo&) {}
+  virtual void on_fault_event(const FaultEventMsg&, const MessageInfo&) {}
+  virtual void on_description(const DescriptionMsg&, const MessageInfo&) {}
+  virtual void on_command(const OperatorCommandMsg&, const MessageInfo&) {}
+  virtual void on_command_ack(const CommandAckMsg&, const MessageInfo&) {}
+};
+
+class TelemetrySubscriber {
+ public:
+  // Validates config (throws std::invalid_argument); creates participant, readers and the command
+  // writer (throws std::runtime_error if DDS fails).
+  explicit TelemetrySubscriber(const SubscriberConfig& config);
+  ~TelemetrySubscriber();
+  TelemetrySubscriber(const TelemetrySubscriber&) = delete;
+  TelemetrySubscriber& operator=(const TelemetrySubscriber&) = delete;
+
+  // Listeners are called in the order added; they must outlive the subscriber (or be removed).
+  void add_listener(TelemetryListener& l);
+  void remove_listener(TelemetryListener& l);
+
+  // Waits up to `timeout` for data on any topic, then takes everything available from every
+  // reader and dispatches it. Returns the number of messages dispatched (0 on timeout).
+  std::size_t poll(std::chrono::nanoseconds timeout);
+
+  // Publishes an operator command; `id` is the caller's. Returns false if the write failed.
+  bool send_command(const runtime::OperatorCommand& c);
+  // Waits until a robot's command reader is matched (commands are volatile: sent before the
+  // match, they are lost). Returns false on timeout.
+  bool wait_for_robot(std::chrono::nanoseconds timeout);
+  // Number of robot-side writers currently matched on joint_state.
+  int joint_state_writers() const;
+
+  const SubscriberConfig& config() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace pedalwave::telemetry

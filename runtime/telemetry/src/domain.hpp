@@ -1,0 +1,87 @@
+// Internal: one Cyclone domain instance per (process, domain id), shared by every participant of
+// this library in the process (Cyclone refuses to create the same domain id twice in a process),
+// and RAII for entity handles. Topic names and QoS of every topic live here too, so the writer and
+// reader sides can never disagree.
+#pragma once
+
+#include <dds/dds.h>
+
+#include <memory>
+#include <string>
+
+#include "pedalwave/telemetry/config.hpp"
+
+namespace pedalwave::telemetry::detail {
+
+// Owns a dds_entity_t; dds_delete on destruction (deleting children with it).
+class Entity {
+ public:
+  Entity() = default;
+  explicit Entity(dds_entity_t e) : e_(e) {}
+  ~Entity() { reset(); }
+  Entity(Entity&& o) noexcept : e_(o.e_) { o.e_ = 0; }
+  Entity& operator=(Entity&& o) noexcept {
+    if (this != &o) {
+      reset();
+      e_ = o.e_;
+      o.e_ = 0;
+    }
+    return *this;
+  }
+  Entity(const Entity&) = delete;
+  Entity& operator=(const Entity&) = delete;
+  void reset() noexcept {
+    if (e_ > 0) dds_delete(e_);
+    e_ = 0;
+  }
+  dds_entity_t get() const noexcept { return e_; }
+
+ private:
+  dds_entity_t e_ = 0;
+};
+
+// The process-wide domain instance for d.domain_id, created with cyclone_config_xml(d) on first
+// use. A second user with a different interface/peers throws (one process, one configuration).
+class Domain {
+ public:
+  ~Domain();
+  Domain(const Domain&) = delete;
+  Domain& operator=(const Domain&) = delete;
+  std::uint32_t id() const noexcept { return id_; }
+
+ private:
+  friend std::shared_ptr<Domain> acquire_domain(const DomainConfig& d);
+  Domain() = default;
+  std::uint32_t id_ = 0;
+  dds_entity_t handle_ = 0;
+  std::string xml_;
+};
+std::shared_ptr<Domain> acquire_domain(const DomainConfig& d);
+
+// Checks a DDS return code; throws std::runtime_error naming `what` on error.
+dds_entity_t check(dds_entity_t rc, const char* what);
+
+// Topic names ("rt/" prefix: ROS 2 convention).
+inline constexpr const char* kTopicJointState = "rt/pedalwave/joint_state";
+inline constexpr const char* kTopicControllerState = "rt/pedalwave/controller_state";
+inline constexpr const char* kTopicObserverState = "rt/pedalwave/observer_state";
+inline constexpr const char* kTopicLoopTiming = "rt/pedalwave/loop_timing";
+inline constexpr const char* kTopicModeEvent = "rt/pedalwave/mode_event";
+inline constexpr const char* kTopicFaultEvent = "rt/pedalwave/fault_event";
+inline constexpr const char* kTopicDescription = "rt/pedalwave/robot_description";
+inline constexpr const char* kTopicCommand = "rt/pedalwave/command";
+inline constexpr const char* kTopicCommandAck = "rt/pedalwave/command_ack";
+
+// QoS classes (README.md "QoS"):
+//   state:       best-effort, volatile, keep-last(depth)
+//   event:       reliable, transient-local, keep-last(100)
+//   description: reliable, transient-local, keep-last(1)
+//   command:     reliable, volatile, keep-last(16)   (commands and acks)
+inline constexpr int kStateWriterDepth = 4;
+inline constexpr int kEventDepth = 100;
+inline constexpr int kCommandDepth = 16;
+enum class QosClass { kState, kEvent, kDescription, kCommand };
+// A new dds_qos_t (caller deletes with dds_delete_qos). `state_depth` only for kState.
+dds_qos_t* make_qos(QosClass c, int state_depth = kStateWriterDepth);
+
+}  // namespace pedalwave::telemetry::detail

@@ -1,0 +1,187 @@
+#include "pedalwave/telemetry/subscriber.hpp"
+
+#include <algorithm>
+#include <array>
+#include <ctime>
+#include <functional>
+#include <thread>
+
+#include "convert.hpp"
+#include "domain.hpp"
+
+namespace pedalwave::telemetry {
+
+using namespace detail;
+
+namespace {
+
+std::int64_t monotonic_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+// One reader and how to dispatch its samples.
+struct ReaderSlot {
+  dds_entity_t reader = 0;
+  dds_entity_t cond = 0;
+  std::function<void(const void*, const MessageInfo&)> dispatch;
+};
+
+}  // namespace
+
+struct TelemetrySubscriber::Impl {
+  SubscriberConfig cfg;
+  std::shared_ptr<Domain> domain;
+  Entity participant;
+  dds_entity_t waitset = 0;
+  dds_entity_t w_cmd = 0;
+  std::vector<ReaderSlot> readers;
+  std::vector<TelemetryListener*> listeners;
+
+  template <typename Msg, typename Decoded>
+  void add_reader(const dds_topic_descriptor_t* desc, const char* name, QosClass qc,
+                  void (TelemetryListener::*method)(const Decoded&, const MessageInfo&)) {
+    const dds_entity_t topic = check(
+        dds_create_topic(participant.get(), desc, name, nullptr, nullptr), "dds_create_topic");
+    dds_qos_t* q = make_qos(qc, cfg.state_history_depth);
+    const dds_entity_t r = dds_create_reader(participant.get(), topic, q, nullptr);
+    dds_delete_qos(q);
+    check(r, "dds_create_reader");
+    ReaderSlot slot;
+    slot.reader = r;
+    slot.cond = check(dds_create_readcondition(r, DDS_ANY_STATE), "dds_create_readcondition");
+    check(dds_waitset_attach(waitset, slot.cond, static_cast<dds_attach_t>(readers.size())),
+          "dds_waitset_attach");
+    slot.dispatch = [this, method](const void* sample, const MessageInfo& info) {
+      const Decoded d = decode(*static_cast<const Msg*>(sample));
+      for (TelemetryListener* l : listeners) (l->*method)(d, info);
+    };
+    readers.push_back(std::move(slot));
+  }
+};
+
+TelemetrySubscriber::TelemetrySubscriber(const SubscriberConfig& config)
+    : impl_(std::make_unique<Impl>()) {
+  config.validate();
+  Impl& m = *impl_;
+  m.cfg = config;
+  m.domain = acquire_domain(config.domain());
+  m.participant = Entity(check(
+      dds_create_participant(static_cast<dds_domainid_t>(config.domain_id), nullptr, nullptr),
+      "dds_create_participant"));
+  m.waitset = check(dds_create_waitset(m.participant.get()), "dds_create_waitset");
+
+  using L = TelemetryListener;
+  m.add_reader<pedalwave_msg_dds__JointState_>(&pedalwave_msg_dds__JointState__desc,
+                                               kTopicJointState, QosClass::kState,
+                                               &L::on_joint_state);
+  m.add_reader<pedalwave_msg_dds__ControllerState_>(&pedalwave_msg_dds__ControllerState__desc,
+                                                    kTopicControllerState, QosClass::kState,
+                                                    &L::on_controller_state);
+  m.add_reader<pedalwave_msg_dds__ObserverState_>(&pedalwave_msg_dds__ObserverState__desc,
+                                                  kTopicObserverState, QosClass::kState,
+                                                  &L::on_observer_state);
+  m.add_reader<pedalwave_msg_dds__LoopTiming_>(&pedalwave_msg_dds__LoopTiming__desc,
+                                               kTopicLoopTiming, QosClass::kState,
+                                               &L::on_loop_timing);
+  m.add_reader<pedalwave_msg_dds__ModeEvent_>(&pedalwave_msg_dds__ModeEvent__desc,
+                                              kTopicModeEvent, QosClass::kEvent,
+                                              &L::on_mode_event);
+  m.add_reader<pedalwave_msg_dds__FaultEvent_>(&pedalwave_msg_dds__FaultEvent__desc,
+                                               kTopicFaultEvent, QosClass::kEvent,
+                                               &L::on_fault_event);
+  m.add_reader<pedalwave_msg_dds__RobotDescription_>(&pedalwave_msg_dds__RobotDescription__desc,
+                                                     kTopicDescription, QosClass::kDescription,
+                                                     &L::on_description);
+  m.add_reader<pedalwave_msg_dds__OperatorCommand_>(&pedalwave_msg_dds__OperatorCommand__desc,
+                                                    kTopicCommand, QosClass::kCommand,
+                                                    &L::on_command);
+  m.add_reader<pedalwave_msg_dds__CommandAck_>(&pedalwave_msg_dds__CommandAck__desc,
+                                               kTopicCommandAck, QosClass::kCommand,
+                                               &L::on_command_ack);
+
+  // Command writer (same topic entity as the command reader: look it up by name).
+  const dds_entity_t cmd_topic =
+      check(dds_create_topic(m.participant.get(), &pedalwave_msg_dds__OperatorCommand__desc,
+                             kTopicCommand, nullptr, nullptr),
+            "dds_create_topic(command)");
+  dds_qos_t* q = make_qos(QosClass::kCommand);
+  m.w_cmd = dds_create_writer(m.participant.get(), cmd_topic, q, nullptr);
+  dds_delete_qos(q);
+  check(m.w_cmd, "dds_create_writer(command)");
+}
+
+TelemetrySubscriber::~TelemetrySubscriber() { impl_->participant.reset(); }
+
+void TelemetrySubscriber::add_listener(TelemetryListener& l) { impl_->listeners.push_back(&l); }
+
+void TelemetrySubscriber::remove_listener(TelemetryListener& l) {
+  auto& v = impl_->listeners;
+  v.erase(std::remove(v.begin(), v.end(), &l), v.end());
+}
+
+std::size_t TelemetrySubscriber::poll(std::chrono::nanoseconds timeout) {
+  Impl& m = *impl_;
+  std::vector<dds_attach_t> triggered(m.readers.size());
+  const dds_return_t n = dds_waitset_wait(m.waitset, triggered.data(), triggered.size(),
+                                          static_cast<dds_duration_t>(timeout.count()));
+  if (n <= 0) return 0;
+  constexpr std::uint32_t kBatch = 64;
+  std::size_t dispatched = 0;
+  // Every reader, not only the triggered ones: keeps the topics in step within one poll.
+  for (const ReaderSlot& slot : m.readers) {
+    for (;;) {
+      std::array<void*, kBatch> buf{};
+      std::array<dds_sample_info_t, kBatch> info{};
+      const dds_return_t got = dds_take(slot.cond, buf.data(), info.data(), kBatch, kBatch);
+      if (got <= 0) break;
+      const std::int64_t now = monotonic_ns();
+      for (dds_return_t i = 0; i < got; ++i) {
+        const auto& si = info[static_cast<std::size_t>(i)];
+        if (!si.valid_data) continue;
+        const MessageInfo mi{now, si.source_timestamp, si.publication_handle};
+        slot.dispatch(buf[static_cast<std::size_t>(i)], mi);
+        ++dispatched;
+      }
+      dds_return_loan(slot.cond, buf.data(), got);
+      if (static_cast<std::uint32_t>(got) < kBatch) break;
+    }
+  }
+  return dispatched;
+}
+
+bool TelemetrySubscriber::send_command(const runtime::OperatorCommand& c) {
+  pedalwave_msg_dds__OperatorCommand_ msg{};
+  fill(c, impl_->cfg.sender.c_str(), msg);
+  return dds_write(impl_->w_cmd, &msg) == DDS_RETCODE_OK;
+}
+
+bool TelemetrySubscriber::wait_for_robot(std::chrono::nanoseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  // The command-ack reader is the last reader added; only a robot writes acks.
+  const dds_entity_t ack_reader = impl_->readers.back().reader;
+  for (;;) {
+    dds_subscription_matched_status_t acks{};
+    dds_publication_matched_status_t cmds{};
+    // A robot's ack writer matched us, and our command writer matched a reader besides our own
+    // participant's command reader.
+    if (dds_get_subscription_matched_status(ack_reader, &acks) == DDS_RETCODE_OK &&
+        dds_get_publication_matched_status(impl_->w_cmd, &cmds) == DDS_RETCODE_OK &&
+        acks.current_count > 0 && cmds.current_count > 1) {
+      return true;
+    }
+    if (std::chrono::steady_clock::now() >= deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+}
+
+int TelemetrySubscriber::joint_state_writers() const {
+  dds_subscription_matched_status_t st{};
+  if (dds_get_subscription_matched_status(impl_->readers.front().reader, &st) < 0) return 0;
+  return static_cast<int>(st.current_count);
+}
+
+const SubscriberConfig& TelemetrySubscriber::config() const { return impl_->cfg; }
+
+}  // namespace pedalwave::telemetry

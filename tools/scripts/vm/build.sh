@@ -164,6 +164,10 @@ for dev in vcan0 vcan1; do
   ip link add dev $dev type vcan && ip link set $dev up || say "cannot create $dev"
 done
 case " $(cat /proc/cmdline) " in *" vm.shell=1 "*) shell=1 ;; *) shell=0 ;; esac
+rwcache=none
+for arg in $(cat /proc/cmdline); do
+  case "$arg" in vm.rwcache=*) rwcache=${arg#vm.rwcache=} ;; esac
+done
 R=/newroot
 mkdir -p $R/proc $R/sys $R/dev $R/tmp $R/run $R/vmctl $R/root $R/vmtools/bin
 mount -t proc proc $R/proc
@@ -179,7 +183,9 @@ mount -o bind /vmctl $R/vmctl
 while read -r tag mode path; do
   [ -n "$tag" ] || continue
   opts=trans=virtio,version=9p2000.L,msize=$msize
-  if [ "$mode" = ro ]; then opts=$opts,ro,cache=loose; fi
+  # ro: the host does not change these during a run, so cache them (exec of host binaries and
+  # libraries is several times faster). rw: cache mode from the kernel command line (vm.rwcache).
+  if [ "$mode" = ro ]; then opts=$opts,ro,cache=loose; else opts=$opts,cache=$rwcache; fi
   mkdir -p "$R$path"
   mount -t 9p -o "$opts" "$tag" "$R$path" || fail "cannot mount share $tag at $path"
 done </vmctl/shares
@@ -195,9 +201,10 @@ if [ "$shell" = 1 ]; then
 fi
 t0=$(cut -d' ' -f1 /proc/uptime)
 {
-  chroot $R /usr/bin/env -i HOME=/root TERM=dumb LANG=C.UTF-8 \
+  # busybox's env and chroot: only bash itself is loaded from the host's /usr.
+  env -i HOME=/root TERM=dumb LANG=C.UTF-8 \
     PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin:/vmtools/bin \
-    PEDALWAVE_IN_VM=1 PEDALWAVE_REQUIRE_VCAN=1 /bin/bash /vmctl/job.sh
+    PEDALWAVE_IN_VM=1 PEDALWAVE_REQUIRE_VCAN=1 chroot $R /bin/bash /vmctl/job.sh
   echo $? >/vmctl/rc
 } 2>&1 | tee /vmctl/output.log
 t1=$(cut -d' ' -f1 /proc/uptime)

@@ -1,0 +1,121 @@
+// The simulated robot: the dynamics of a Model plus exactly the effects its Scene switches on
+// (model-spec.md §6, DESIGN.md "Simulation"). A System for the integrators:
+//   effects (actuators, joint friction, ground, boxes)  →  dynamics  →  integrate.
+// Sized once at construction; acceleration()/implicit_terms() allocate nothing.
+#pragma once
+
+#include <random>
+
+#include "pedalwave/model/dynamics.hpp"
+#include "pedalwave/model/integrators.hpp"
+#include "pedalwave/model/scene.hpp"
+
+namespace pedalwave::model {
+
+// What the motor modules apply (the drivers::Command, in model terms), each (N-1):
+//   u_j = tau_j + kp_j (beta_ref_j − β_j) + kd_j (beta_dot_ref_j − β̇_j), then limits.
+struct ActuatorInput {
+  VectorXd tau;           // feed-forward torque [N·m]
+  VectorXd beta_ref;      // [rad]
+  VectorXd beta_dot_ref;  // [rad/s]
+  VectorXd kp;            // [N·m/rad]
+  VectorXd kd;            // [N·m·s/rad]
+  bool torque_off = false;
+};
+
+// What the sensors give (motor side only), each (N-1).
+struct Measurement {
+  VectorXd beta;        // motor output angle [rad]
+  VectorXd beta_dot;    // [rad/s]
+  VectorXd deflection;  // β − α [rad]
+};
+
+// Contact state of one evaluation, for output and plots.
+struct ContactReport {
+  VectorXd f_normal;      // normal force per body point [N], (2N+1)
+  VectorXd f_tangent;     // tangential force per body point [N], (2N+1)
+  double max_penetration = 0.0;  // deepest penetration of any point/corner [m]
+  int active = 0;               // contacts carrying force
+};
+
+class Plant final : public System {
+ public:
+  // Validates the scene (throws std::invalid_argument) and sizes everything.
+  explicit Plant(const Scene& scene);
+
+  const Model& model() const { return model_; }
+  const Scene& scene() const { return scene_; }
+  int nq() const override { return model_.nq(); }
+
+  // The scene's initial state (q, v sized nq).
+  void initial_state(VectorXd& q, VectorXd& v) const;
+
+  ActuatorInput& input() { return input_; }
+  const ActuatorInput& input() const { return input_; }
+
+  bool acceleration(double t, const VectorXd& q, const VectorXd& v, VectorXd& a) override;
+  bool implicit_terms(double t, const VectorXd& q, const VectorXd& v, ImplicitTerms& out) override;
+
+  // Motor torques u (N-1) the actuators apply at (q, v): input law, joint friction, limits.
+  void motor_torques(const VectorXd& q, const VectorXd& v, Eigen::Ref<VectorXd> u) const;
+  // Generalized contact force at (q, v) (needs update_kinematics on data()).
+  void contact_forces(const VectorXd& q, const VectorXd& v, Eigen::Ref<VectorXd> Q,
+                      ImplicitTerms* jac, ContactReport* report);
+
+  // After an accepted step: updates stick–slip anchors. Call once per plant step.
+  void after_step(const VectorXd& q, const VectorXd& v);
+  // Sensor model (noise and quantization when the scene switches them on).
+  void measure(const VectorXd& q, const VectorXd& v, Measurement& out);
+  // Contact forces per point and max penetration at (q, v).
+  void report(const VectorXd& q, const VectorXd& v, ContactReport& out);
+  // Total mechanical energy (kinetic + gravity + spring) [J].
+  double energy(const VectorXd& q, const VectorXd& v);
+
+  Data& data() { return data_; }
+
+ private:
+  double mu_at(double x) const;
+  // Friction force along the tangent for normal force fN, tangential velocity vt; dfdv its
+  // derivative wrt vt (for implicit schemes). slot ≥ 0 selects a stick–slip anchor.
+  double friction(double mu, double fN, double vt, double xt, int slot, double& dfdv) const;
+  void add_contact(int k_a, int k_b, double s, const Vec2& n, double depth, double mu,
+                   const VectorXd& v, double xt, int slot, Eigen::Ref<VectorXd> Q,
+                   ImplicitTerms* jac, ContactReport* report);
+
+  Scene scene_;
+  Model model_;
+  Data data_;
+  ActuatorInput input_;
+  VectorXd u_, Q_;
+  MatrixXd Ja_, Jb_;
+  Eigen::RowVectorXd jn_, jt_;
+  VectorXd anchor_;        // stick–slip anchor x per ground point [m]
+  std::vector<char> anchored_;
+  std::mt19937_64 rng_;
+  double x_min_ = 0.0, x_max_ = 0.0;  // robot's X extent at the last evaluation (broad phase)
+};
+
+// A plant with its integrator and state: the unit the CLI, tools and the sim driver step.
+class Simulation {
+ public:
+  explicit Simulation(const Scene& scene);
+  Simulation(const Scene& scene, const IntegratorOptions& integ);
+
+  Plant& plant() { return plant_; }
+  Integrator& integrator() { return integ_; }
+  double t() const { return t_; }
+  VectorXd& q() { return q_; }
+  VectorXd& v() { return v_; }
+
+  // Advance to t_end in plant steps (fixed-step: steps of h; adaptive: its own steps), calling
+  // plant.after_step() after each. Returns the first failure.
+  StepStatus advance_to(double t_end);
+
+ private:
+  Plant plant_;
+  Integrator integ_;
+  double t_ = 0.0;
+  VectorXd q_, v_;
+};
+
+}  // namespace pedalwave::model

@@ -1,0 +1,375 @@
+#include "pedalwave/model/plant.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace pedalwave::model {
+
+const char* to_string(FrictionLaw f) {
+  switch (f) {
+    case FrictionLaw::kCoulomb: return "coulomb";
+    case FrictionLaw::kRegularized: return "regularized";
+    case FrictionLaw::kTanh: return "tanh";
+    case FrictionLaw::kStickSlip: return "stick_slip";
+  }
+  return "?";
+}
+
+Plant::Plant(const Scene& scene)
+    : scene_(scene), model_(scene.robot), data_(model_), rng_(scene.sensor_noise.seed) {
+  validate(scene_);
+  const int J = model_.joints(), n = model_.nq(), P = model_.points();
+  for (auto* x : {&input_.tau, &input_.beta_ref, &input_.beta_dot_ref, &input_.kp, &input_.kd})
+    *x = VectorXd::Zero(J);
+  u_ = VectorXd::Zero(J);
+  Q_ = VectorXd::Zero(n);
+  Ja_ = MatrixXd::Zero(2, n);
+  Jb_ = MatrixXd::Zero(2, n);
+  jn_ = Eigen::RowVectorXd::Zero(n);
+  jt_ = Eigen::RowVectorXd::Zero(n);
+  anchor_ = VectorXd::Zero(P);
+  anchored_.assign(static_cast<size_t>(P), 0);
+}
+
+void Plant::initial_state(VectorXd& q, VectorXd& v) const {
+  const Model& m = model_;
+  const InitialState& in = scene_.initial;
+  q = VectorXd::Zero(m.nq());
+  v = VectorXd::Zero(m.nq());
+  if (in.pose == InitialPose::kExplicit) {
+    for (int i = 0; i < m.nq(); ++i) q(i) = in.q[static_cast<size_t>(i)];
+    if (!in.v.empty())
+      for (int i = 0; i < m.nq(); ++i) v(i) = in.v[static_cast<size_t>(i)];
+    return;
+  }
+  if (in.pose == InitialPose::kGaitStart) {
+    const GaitParams& g = scene_.gait;
+    for (int j = 0; j < m.joints(); ++j) q(m.i_alpha(j)) = g.A_p * std::sin(g.eta * j);
+  }
+  if (m.flexible())
+    for (int j = 0; j < m.joints(); ++j) q(m.i_beta(j)) = q(m.i_alpha(j));
+  q(m.i_px()) = in.x;
+  // Rest the lowest point on the ground (plus the requested height), whatever the shape.
+  Data d(m);
+  update_kinematics(m, d, q, VectorXd());
+  double z_low = 1e300;
+  for (int k = 0; k < m.points(); ++k) z_low = std::min(z_low, point_position(m, d, q, k).y());
+  const double z_ground = scene_.ground_on ? scene_.ground.z : 0.0;
+  q(m.i_pz()) = z_ground - z_low + in.height;
+}
+
+double Plant::mu_at(double x) const {
+  double mu = scene_.ground.mu;
+  for (const SurfacePatch& p : scene_.ground.patches)
+    if (x >= p.x_begin) mu = p.mu;
+  return mu;
+}
+
+double Plant::friction(double mu, double fN, double vt, double xt, int slot, double& dfdv) const {
+  const Ground& g = scene_.ground;
+  dfdv = 0.0;
+  switch (g.law) {
+    case FrictionLaw::kCoulomb:
+      return vt > 0 ? -mu * fN : (vt < 0 ? mu * fN : 0.0);
+    case FrictionLaw::kRegularized:
+      if (std::abs(vt) < g.v_s) {
+        dfdv = -mu * fN / g.v_s;
+        return dfdv * vt;
+      }
+      return vt > 0 ? -mu * fN : mu * fN;
+    case FrictionLaw::kTanh: {
+      const double th = std::tanh(vt / g.v_s);
+      dfdv = -mu * fN * (1 - th * th) / g.v_s;
+      return -mu * fN * th;
+    }
+    case FrictionLaw::kStickSlip: {
+      if (slot < 0 || !anchored_[static_cast<size_t>(slot)]) {  // no anchor yet: regularized
+        if (std::abs(vt) < g.v_s) {
+          dfdv = -mu * fN / g.v_s;
+          return dfdv * vt;
+        }
+        return vt > 0 ? -mu * fN : mu * fN;
+      }
+      // Stick spring to the anchor plus critical-ish damping; slips at μ f_N.
+      const double c = 2.0 * std::sqrt(g.k_t * 0.1);
+      const double f = -g.k_t * (xt - anchor_(slot)) - c * vt;
+      const double lim = mu * fN;
+      if (std::abs(f) <= lim) {
+        dfdv = -c;
+        return f;
+      }
+      return f > 0 ? lim : -lim;
+    }
+  }
+  return 0.0;
+}
+
+// One contact at the material point (1 − s)·A + s·B of body points k_a, k_b (s = 0 for a body
+// point), normal n, penetration depth > 0. Force f = f_N n + f_T t enters as Jᵀ f.
+void Plant::add_contact(int k_a, int k_b, double s, const Vec2& n, double depth, double mu,
+                        const VectorXd& v, double xt, int slot, Eigen::Ref<VectorXd> Q,
+                        ImplicitTerms* jac, ContactReport* report) {
+  const Model& m = model_;
+  const Ground& g = scene_.ground;
+  const Vec2 t(n.y(), -n.x());
+  Vec2 vel = point_velocity(m, data_, v, k_a);
+  if (s > 0) vel = (1 - s) * vel + s * point_velocity(m, data_, v, k_b);
+  const double depth_rate = -vel.dot(n);
+  const double fN = std::max(g.k * depth + g.d * depth_rate, 0.0);
+  const double vt = vel.dot(t);
+  double dfdv = 0.0;
+  const bool with_friction = !(g.friction_at_com && s == 0 && (k_a % 2) == 0);
+  const double fT = with_friction ? friction(mu, fN, vt, xt, slot, dfdv) : 0.0;
+  const Vec2 f = fN * n + fT * t;
+  if (s > 0) {
+    add_point_force(m, data_, k_a, (1 - s) * f, Q);
+    add_point_force(m, data_, k_b, s * f, Q);
+  } else {
+    add_point_force(m, data_, k_a, f, Q);
+  }
+  if (report) {
+    report->max_penetration = std::max(report->max_penetration, depth);
+    if (fN > 0) ++report->active;
+    const int k = s > 0.5 ? k_b : k_a;
+    report->f_normal(k) += fN;
+    report->f_tangent(k) += fT;
+  }
+  if (jac && fN > 0) {
+    // Stiff terms for the implicit scheme: −k JnᵀJn on q, −d JnᵀJn + ∂f_T/∂v_t JtᵀJt on v.
+    point_jacobian(m, data_, k_a, Ja_);
+    if (s > 0) {
+      point_jacobian(m, data_, k_b, Jb_);
+      Ja_ = (1 - s) * Ja_ + s * Jb_;
+    }
+    jn_.noalias() = n.transpose() * Ja_;
+    jt_.noalias() = t.transpose() * Ja_;
+    jac->dFdq.noalias() -= g.k * jn_.transpose() * jn_;
+    jac->dFdv.noalias() -= g.d * jn_.transpose() * jn_;
+    if (dfdv != 0.0) jac->dFdv.noalias() += dfdv * jt_.transpose() * jt_;
+    // Friction scales with f_N, which depends on depth and its rate: f_T/f_N ∂f_N (non-symmetric).
+    if (fT != 0.0) {
+      const double r = fT / fN;
+      jac->dFdq.noalias() -= (r * g.k) * jt_.transpose() * jn_;
+      jac->dFdv.noalias() -= (r * g.d) * jt_.transpose() * jn_;
+    }
+  }
+}
+
+void Plant::contact_forces(const VectorXd& q, const VectorXd& v, Eigen::Ref<VectorXd> Q,
+                           ImplicitTerms* jac, ContactReport* report) {
+  const Model& m = model_;
+  const int P = m.points();
+  x_min_ = 1e300;
+  x_max_ = -1e300;
+  if (!scene_.ground_on && scene_.boxes.empty()) return;
+  const Ground& g = scene_.ground;
+  // Ground: every body point against the plane z = ground.z.
+  for (int k = 0; k < P; ++k) {
+    const Vec2 p = point_position(m, data_, q, k);
+    x_min_ = std::min(x_min_, p.x());
+    x_max_ = std::max(x_max_, p.x());
+    if (!scene_.ground_on) continue;
+    const double depth = g.z - p.y();
+    if (depth > 0)
+      add_contact(k, k, 0.0, Vec2(0, 1), depth, mu_at(p.x()), v, p.x(), k, Q, jac, report);
+  }
+  // Boxes: only those the robot's X extent reaches (broad phase).
+  for (const Box& b : scene_.boxes) {
+    const double x0 = b.x_near, x1 = b.x_near + b.width, z0 = g.z, z1 = g.z + b.height;
+    if (x_max_ < x0 || x_min_ > x1) continue;
+    // Body points inside the box: pushed out through the nearest face.
+    for (int k = 0; k < P; ++k) {
+      const Vec2 p = point_position(m, data_, q, k);
+      if (p.x() <= x0 || p.x() >= x1 || p.y() >= z1 || p.y() <= z0 - 1e-9) continue;
+      const double d_top = z1 - p.y(), d_left = p.x() - x0, d_right = x1 - p.x();
+      Vec2 n(0, 1);
+      double depth = d_top;
+      if (d_left < depth) depth = d_left, n = Vec2(-1, 0);
+      if (d_right < depth) depth = d_right, n = Vec2(1, 0);
+      add_contact(k, k, 0.0, n, depth, b.mu, v, 0.0, -1, Q, jac, report);
+    }
+    // The box's top corners against each link segment (a link resting on an edge).
+    if (!b.corner_contact) continue;
+    const double cap = 0.5 * std::min(b.width, b.height);
+    const Vec2 centre(0.5 * (x0 + x1), 0.5 * (z0 + z1));
+    for (const Vec2& c : {Vec2(x0, z1), Vec2(x1, z1)}) {
+      for (int i = 0; i < m.N(); ++i) {
+        const int ka = 2 * i, kb = 2 * i + 2;
+        const Vec2 A = point_position(m, data_, q, ka), B = point_position(m, data_, q, kb);
+        const Vec2 ab = B - A;
+        const double len2 = ab.squaredNorm();
+        const double s = (c - A).dot(ab) / len2;
+        if (s <= 0.0 || s >= 1.0) continue;
+        Vec2 n(-ab.y(), ab.x());
+        n /= std::sqrt(len2);
+        if (n.dot(c - centre) < 0) n = -n;  // away from the box interior
+        const double depth = (c - A).dot(n);
+        if (depth <= 0 || depth > cap) continue;
+        add_contact(ka, kb, s, n, depth, b.mu, v, 0.0, -1, Q, jac, report);
+      }
+    }
+  }
+}
+
+void Plant::motor_torques(const VectorXd& q, const VectorXd& v, Eigen::Ref<VectorXd> u) const {
+  const Model& m = model_;
+  const int first = m.flexible() ? m.i_beta(0) : m.i_alpha(0);
+  const double b = scene_.joint_friction_on ? scene_.joint_friction.motor_viscous : 0.0;
+  const double lim = scene_.torque_limit_on ? scene_.torque_limit.u_max : 0.0;
+  for (int j = 0; j < m.joints(); ++j) {
+    const double beta = q(first + j), beta_dot = v(first + j);
+    double uj = 0.0;
+    if (!input_.torque_off)
+      uj = input_.tau(j) + input_.kp(j) * (input_.beta_ref(j) - beta) +
+           input_.kd(j) * (input_.beta_dot_ref(j) - beta_dot);
+    if (lim > 0) uj = std::clamp(uj, -lim, lim);
+    u(j) = uj - b * beta_dot;
+  }
+}
+
+bool Plant::acceleration(double, const VectorXd& q, const VectorXd& v, VectorXd& a) {
+  const Model& m = model_;
+  update_kinematics(m, data_, q, v);
+  motor_torques(q, v, u_);
+  Q_.setZero();
+  contact_forces(q, v, Q_, nullptr, nullptr);
+  compute_mass_matrix(m, data_);
+  if (!data_.mass_valid) return false;
+  compute_bias(m, data_, q);
+  a = Q_ - data_.bias;
+  a.segment(m.flexible() ? m.i_beta(0) : 0, m.joints()) += u_;
+  solve_mass(data_, a);
+  return true;
+}
+
+bool Plant::implicit_terms(double, const VectorXd& q, const VectorXd& v, ImplicitTerms& out) {
+  const Model& m = model_;
+  update_kinematics(m, data_, q, v);
+  motor_torques(q, v, u_);
+  out.dFdq.setZero();
+  out.dFdv.setZero();
+  Q_.setZero();
+  contact_forces(q, v, Q_, &out, nullptr);
+  compute_mass_matrix(m, data_);
+  if (!data_.mass_valid) return false;
+  compute_bias(m, data_, q);
+  const int first = m.flexible() ? m.i_beta(0) : 0;
+  out.M = data_.M;
+  out.F = Q_ - data_.bias;
+  out.F.segment(first, m.joints()) += u_;
+  // Springs: F = −K_T q.
+  if (m.flexible()) {
+    for (int j = 0; j < m.joints(); ++j) {
+      const double K = m.K()(j);
+      const int a = m.i_alpha(j), b = m.i_beta(j);
+      out.dFdq(a, a) -= K;
+      out.dFdq(b, b) -= K;
+      out.dFdq(a, b) += K;
+      out.dFdq(b, a) += K;
+    }
+  }
+  // Module PD and joint friction (zero slope where the torque limit is active).
+  const double bm = scene_.joint_friction_on ? scene_.joint_friction.motor_viscous : 0.0;
+  const double lim = scene_.torque_limit_on ? scene_.torque_limit.u_max : 0.0;
+  for (int j = 0; j < m.joints(); ++j) {
+    const int r = first + j;
+    const bool saturated = lim > 0 && std::abs(u_(j) + bm * v(r)) >= lim;
+    if (!input_.torque_off && !saturated) {
+      out.dFdq(r, r) -= input_.kp(j);
+      out.dFdv(r, r) -= input_.kd(j);
+    }
+    out.dFdv(r, r) -= bm;
+  }
+  return true;
+}
+
+void Plant::after_step(const VectorXd& q, const VectorXd& v) {
+  if (!scene_.ground_on || scene_.ground.law != FrictionLaw::kStickSlip) return;
+  const Model& m = model_;
+  const Ground& g = scene_.ground;
+  update_kinematics(m, data_, q, v);
+  for (int k = 0; k < m.points(); ++k) {
+    const Vec2 p = point_position(m, data_, q, k);
+    const size_t s = static_cast<size_t>(k);
+    if (p.y() >= g.z) {
+      anchored_[s] = 0;
+      continue;
+    }
+    const Vec2 vel = point_velocity(m, data_, v, k);
+    const double fN = std::max(g.k * (g.z - p.y()) - g.d * vel.y(), 0.0);
+    if (!anchored_[s]) {
+      anchored_[s] = 1;
+      anchor_(k) = p.x();
+      continue;
+    }
+    // Slipping: drag the anchor so the spring force stays at the friction limit.
+    const double lim = mu_at(p.x()) * fN / g.k_t;
+    const double dx = p.x() - anchor_(k);
+    if (dx > lim) anchor_(k) = p.x() - lim;
+    if (dx < -lim) anchor_(k) = p.x() + lim;
+  }
+}
+
+void Plant::measure(const VectorXd& q, const VectorXd& v, Measurement& out) {
+  const Model& m = model_;
+  const SensorNoise& sn = scene_.sensor_noise;
+  std::normal_distribution<double> unit(0.0, 1.0);
+  auto quantize = [](double x, double step) { return step > 0 ? step * std::round(x / step) : x; };
+  for (int j = 0; j < m.joints(); ++j) {
+    const double alpha = q(m.i_alpha(j));
+    const double beta = m.flexible() ? q(m.i_beta(j)) : alpha;
+    const double beta_dot = m.flexible() ? v(m.i_beta(j)) : v(m.i_alpha(j));
+    double b = beta, bd = beta_dot, def = beta - alpha;
+    if (scene_.sensor_noise_on) {
+      b = quantize(b + sn.beta_sigma * unit(rng_), sn.encoder_resolution);
+      bd += sn.beta_dot_sigma * unit(rng_);
+      def = quantize(def + sn.deflection_sigma * unit(rng_), sn.deflection_resolution);
+    }
+    out.beta(j) = b;
+    out.beta_dot(j) = bd;
+    out.deflection(j) = def;
+  }
+}
+
+void Plant::report(const VectorXd& q, const VectorXd& v, ContactReport& out) {
+  out.f_normal = VectorXd::Zero(model_.points());
+  out.f_tangent = VectorXd::Zero(model_.points());
+  out.max_penetration = 0.0;
+  out.active = 0;
+  update_kinematics(model_, data_, q, v);
+  Q_.setZero();
+  contact_forces(q, v, Q_, nullptr, &out);
+}
+
+double Plant::energy(const VectorXd& q, const VectorXd& v) {
+  update_kinematics(model_, data_, q, v);
+  compute_mass_matrix(model_, data_);
+  return kinetic_energy(data_, v) + gravity_energy(model_, data_, q) + spring_energy(model_, q);
+}
+
+Simulation::Simulation(const Scene& scene) : Simulation(scene, scene.integrator) {}
+
+Simulation::Simulation(const Scene& scene, const IntegratorOptions& integ)
+    : plant_(scene), integ_(plant_.nq(), integ) {
+  plant_.initial_state(q_, v_);
+}
+
+StepStatus Simulation::advance_to(double t_end) {
+  if (is_adaptive(integ_.options().method)) {
+    const StepStatus s = integ_.advance(plant_, t_, t_end, q_, v_);
+    if (s == StepStatus::kOk) plant_.after_step(q_, v_);
+    return s;
+  }
+  const double h = integ_.options().h;
+  while (t_end - t_ > 1e-12 * std::max(1.0, std::abs(t_end))) {
+    const double step = std::min(h, t_end - t_);
+    const StepStatus s = integ_.step(plant_, t_, step, q_, v_);
+    if (s != StepStatus::kOk) return s;
+    t_ += step;
+    plant_.after_step(q_, v_);
+  }
+  t_ = t_end;
+  return StepStatus::kOk;
+}
+
+}  // namespace pedalwave::model

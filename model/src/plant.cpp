@@ -29,6 +29,17 @@ Plant::Plant(const Scene& scene)
   jt_ = Eigen::RowVectorXd::Zero(n);
   anchor_ = VectorXd::Zero(P);
   anchored_.assign(static_cast<size_t>(P), 0);
+  // Boxes placed relative to the leading (head) tip of the initial state.
+  bool relative = false;
+  for (const Box& b : scene_.boxes) relative |= std::isfinite(b.ahead_of_head);
+  if (relative) {
+    VectorXd q, v;
+    initial_state(q, v);
+    update_kinematics(model_, data_, q, v);
+    const double x_head = point_position(model_, data_, q, model_.point_head()).x();
+    for (Box& b : scene_.boxes)
+      if (std::isfinite(b.ahead_of_head)) b.x_near = x_head + b.ahead_of_head;
+  }
 }
 
 void Plant::initial_state(VectorXd& q, VectorXd& v) const {

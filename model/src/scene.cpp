@@ -56,7 +56,8 @@ void validate(const Scene& s) {
   for (size_t i = 0; i < s.boxes.size(); ++i) {
     const std::string key = "obstacles[" + std::to_string(i) + "]";
     if (!s.ground_on) reject(s, key, 0, "boxes stand on the ground: switch ground on");
-    if (!std::isfinite(s.boxes[i].x_near)) reject(s, key + ".x_near", s.boxes[i].x_near, "expected finite [m]");
+    if (!std::isfinite(s.boxes[i].x_near) && !std::isfinite(s.boxes[i].ahead_of_head))
+      reject(s, key + ".x_near", s.boxes[i].x_near, "expected finite [m] (or ahead_of_head)");
     positive(s, key + ".width", s.boxes[i].width);
     positive(s, key + ".height", s.boxes[i].height);
     non_negative(s, key + ".mu", s.boxes[i].mu);

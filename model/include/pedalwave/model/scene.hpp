@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -39,7 +40,9 @@ struct Ground {
 
 // A stair-type box on the ground: [x_near, x_near + width] × [ground.z, ground.z + height].
 struct Box {
-  double x_near = 0.0;   // near edge [m] (absolute X)
+  double x_near = 0.0;   // near edge [m] (absolute X), unless ahead_of_head is given
+  double ahead_of_head = std::numeric_limits<double>::quiet_NaN();  // near edge this far ahead of
+                         // the head tip (the leading tip, +X) in the initial state [m]
   double width = 0.11;   // [m]
   double height = 0.06;  // [m]
   double mu = 0.82;      // friction on its faces [-]

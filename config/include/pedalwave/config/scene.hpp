@@ -1,0 +1,22 @@
+// Scene files (config/scenes/*.yaml) → model::Scene. The format is documented in
+// config/scenes/README.md; a missing section means the effect is off (ground excepted: a scene
+// without `ground:` has none, e.g. free fall). Errors name file, line, key, value and expectation.
+#pragma once
+
+#include <string>
+
+#include "pedalwave/config/yaml_reader.hpp"
+#include "pedalwave/model/scene.hpp"
+
+namespace pedalwave::config {
+
+model::Scene load_scene(const std::string& path);
+model::Scene parse_scene(const std::string& text, const std::string& name);
+model::Scene read_scene(const Reader& r);
+
+// Pieces shared with other configuration files.
+model::Params read_robot(const Reader& r);                  // the `robot:` map
+model::IntegratorOptions read_integrator(const Reader& r);  // the `integrator:` map
+model::GaitParams read_gait(const Reader& r);               // the `gait:` map
+
+}  // namespace pedalwave::config

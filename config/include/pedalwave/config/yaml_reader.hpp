@@ -1,0 +1,78 @@
+// Reading YAML into parameter structs with errors a person can act on: every failure names the
+// file, the line, the full key path, the value found and what was expected, e.g.
+//   config/scenes/stair.yaml:12:7: ground.mu = "high": expected a number >= 0
+// Unknown keys are errors too (a typo must not silently fall back to a default).
+#pragma once
+
+#include <functional>
+#include <initializer_list>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <yaml-cpp/yaml.h>
+
+namespace pedalwave::config {
+
+class ConfigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class Reader {
+ public:
+  // Loads a file (throws ConfigError naming the file on I/O or syntax errors).
+  static Reader load_file(const std::string& path);
+  // Parses text (for tests and inline scenes); `name` stands for the file in messages.
+  static Reader parse(const std::string& text, const std::string& name);
+
+  Reader(YAML::Node node, std::string file, std::string path);
+
+  bool has(const std::string& key) const;
+  bool is_map() const { return node_.IsMap(); }
+  bool is_sequence() const { return node_.IsSequence(); }
+  bool is_scalar() const { return node_.IsScalar(); }
+  std::size_t size() const { return node_.size(); }
+  const std::string& path() const { return path_; }
+  const std::string& file() const { return file_; }
+
+  Reader operator[](const std::string& key) const;  // child map entry (must exist)
+  Reader at(std::size_t i) const;                    // sequence element
+
+  // Scalars of this node.
+  double as_number() const;
+  long long as_integer() const;
+  bool as_bool() const;
+  std::string as_string() const;
+  // Typed getters with defaults (absent key → default) and range checks.
+  double number(const std::string& key, double def) const;
+  double number(const std::string& key) const;  // required
+  double positive(const std::string& key, double def) const;
+  double non_negative(const std::string& key, double def) const;
+  long long integer(const std::string& key, long long def, long long lo, long long hi) const;
+  bool boolean(const std::string& key, bool def) const;
+  std::string string(const std::string& key, const std::string& def) const;
+  // One of the given words.
+  std::string choice(const std::string& key, const std::string& def,
+                     std::initializer_list<const char*> allowed) const;
+  // A number or a list of numbers.
+  std::vector<double> numbers(const std::string& key) const;
+
+  // Every key of this map must be one of `allowed`.
+  void allow_only(std::initializer_list<const char*> allowed) const;
+
+  // Throws ConfigError: "<file>:<line>:<col>: <path> = <value>: expected <expected>".
+  [[noreturn]] void fail(const std::string& expected) const;
+  [[noreturn]] void fail_key(const std::string& key, const std::string& expected) const;
+
+ private:
+  std::string location() const;
+  std::string child_path(const std::string& key) const;
+
+  YAML::Node node_;
+  std::string file_;
+  std::string path_;
+};
+
+}  // namespace pedalwave::config

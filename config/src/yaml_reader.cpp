@@ -1,0 +1,225 @@
+#include "pedalwave/config/yaml_reader.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+namespace pedalwave::config {
+
+Reader Reader::load_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(path + ": cannot open the file (does it exist? is it readable?)");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse(ss.str(), path);
+}
+
+Reader Reader::parse(const std::string& text, const std::string& name) {
+  try {
+    YAML::Node n = YAML::Load(text);
+    if (!n.IsDefined() || n.IsNull()) n = YAML::Node(YAML::NodeType::Map);
+    return Reader(n, name, "");
+  } catch (const YAML::Exception& e) {
+    std::ostringstream os;
+    os << name << ":" << e.mark.line + 1 << ":" << e.mark.column + 1 << ": YAML syntax error: " << e.msg;
+    throw ConfigError(os.str());
+  }
+}
+
+Reader::Reader(YAML::Node node, std::string file, std::string path)
+    : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)) {}
+
+std::string Reader::location() const {
+  std::ostringstream os;
+  os << file_;
+  const YAML::Mark m = node_.Mark();
+  if (m.line >= 0) os << ":" << m.line + 1 << ":" << m.column + 1;
+  return os.str();
+}
+
+std::string Reader::child_path(const std::string& key) const {
+  return path_.empty() ? key : path_ + "." + key;
+}
+
+bool Reader::has(const std::string& key) const {
+  return node_.IsMap() && node_[key].IsDefined() && !node_[key].IsNull();
+}
+
+Reader Reader::operator[](const std::string& key) const {
+  if (!node_.IsMap()) fail("a map with key '" + key + "'");
+  YAML::Node c = node_[key];
+  if (!c.IsDefined()) fail_key(key, "a value (the key is required)");
+  return Reader(c, file_, child_path(key));
+}
+
+Reader Reader::at(std::size_t i) const {
+  if (!node_.IsSequence() || i >= node_.size()) fail("a list with an element " + std::to_string(i));
+  return Reader(node_[i], file_, path_ + "[" + std::to_string(i) + "]");
+}
+
+void Reader::fail(const std::string& expected) const {
+  std::ostringstream os;
+  os << location() << ": " << (path_.empty() ? "(top level)" : path_);
+  if (node_.IsScalar())
+    os << " = \"" << node_.Scalar() << "\"";
+  else if (node_.IsSequence())
+    os << " = [list]";
+  else if (node_.IsMap())
+    os << " = {map}";
+  os << ": expected " << expected;
+  throw ConfigError(os.str());
+}
+
+void Reader::fail_key(const std::string& key, const std::string& expected) const {
+  std::ostringstream os;
+  os << location() << ": " << child_path(key) << ": expected " << expected;
+  throw ConfigError(os.str());
+}
+
+double Reader::as_number() const {
+  if (!node_.IsScalar()) fail("a number");
+  const std::string s = node_.Scalar();
+  // Accept plain numbers and the constants pi, -pi, k*pi, pi/k (angles read better that way).
+  try {
+    std::size_t pos = 0;
+    const double v = std::stod(s, &pos);
+    if (pos == s.size()) return v;
+  } catch (...) {
+  }
+  auto trim = [](std::string x) {
+    x.erase(0, x.find_first_not_of(" \t"));
+    x.erase(x.find_last_not_of(" \t") + 1);
+    return x;
+  };
+  std::string t = trim(s);
+  double sign = 1.0;
+  if (!t.empty() && t[0] == '-') sign = -1.0, t = trim(t.substr(1));
+  double factor = 1.0, divisor = 1.0;
+  const auto star = t.find('*');
+  if (star != std::string::npos) {
+    try {
+      factor = std::stod(trim(t.substr(0, star)));
+    } catch (...) {
+      fail("a number (or an expression like pi/4, -2*pi/5)");
+    }
+    t = trim(t.substr(star + 1));
+  }
+  const auto slash = t.find('/');
+  if (slash != std::string::npos) {
+    try {
+      divisor = std::stod(trim(t.substr(slash + 1)));
+    } catch (...) {
+      fail("a number (or an expression like pi/4, -2*pi/5)");
+    }
+    t = trim(t.substr(0, slash));
+  }
+  if (t != "pi" || divisor == 0) fail("a number (or an expression like pi/4, -2*pi/5)");
+  return sign * factor * M_PI / divisor;
+}
+
+long long Reader::as_integer() const {
+  const double v = as_number();
+  if (v != std::floor(v) || std::abs(v) > 9e15) fail("an integer");
+  return static_cast<long long>(v);
+}
+
+bool Reader::as_bool() const {
+  if (!node_.IsScalar()) fail("true or false");
+  const std::string& s = node_.Scalar();
+  if (s == "true" || s == "on" || s == "yes") return true;
+  if (s == "false" || s == "off" || s == "no") return false;
+  fail("true or false");
+}
+
+std::string Reader::as_string() const {
+  if (!node_.IsScalar()) fail("a string");
+  return node_.Scalar();
+}
+
+double Reader::number(const std::string& key, double def) const {
+  if (!has(key)) return def;
+  const double v = (*this)[key].as_number();
+  if (!std::isfinite(v)) (*this)[key].fail("a finite number");
+  return v;
+}
+
+double Reader::number(const std::string& key) const {
+  if (!has(key)) fail_key(key, "a number (the key is required)");
+  return number(key, 0.0);
+}
+
+double Reader::positive(const std::string& key, double def) const {
+  const double v = number(key, def);
+  if (has(key) && !(v > 0)) (*this)[key].fail("a number > 0");
+  return v;
+}
+
+double Reader::non_negative(const std::string& key, double def) const {
+  const double v = number(key, def);
+  if (has(key) && v < 0) (*this)[key].fail("a number >= 0");
+  return v;
+}
+
+long long Reader::integer(const std::string& key, long long def, long long lo, long long hi) const {
+  if (!has(key)) return def;
+  const Reader r = (*this)[key];
+  const long long v = r.as_integer();
+  if (v < lo || v > hi)
+    r.fail("an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  return v;
+}
+
+bool Reader::boolean(const std::string& key, bool def) const {
+  return has(key) ? (*this)[key].as_bool() : def;
+}
+
+std::string Reader::string(const std::string& key, const std::string& def) const {
+  return has(key) ? (*this)[key].as_string() : def;
+}
+
+std::string Reader::choice(const std::string& key, const std::string& def,
+                           std::initializer_list<const char*> allowed) const {
+  if (!has(key)) return def;
+  const Reader r = (*this)[key];
+  const std::string v = r.as_string();
+  std::string list;
+  for (const char* a : allowed) {
+    if (v == a) return v;
+    list += list.empty() ? "" : ", ";
+    list += a;
+  }
+  r.fail("one of " + list);
+}
+
+std::vector<double> Reader::numbers(const std::string& key) const {
+  std::vector<double> out;
+  if (!has(key)) return out;
+  const Reader r = (*this)[key];
+  if (r.is_scalar()) return {r.as_number()};
+  if (!r.is_sequence()) r.fail("a number or a list of numbers");
+  for (std::size_t i = 0; i < r.size(); ++i) out.push_back(r.at(i).as_number());
+  return out;
+}
+
+void Reader::allow_only(std::initializer_list<const char*> allowed) const {
+  if (!node_.IsMap()) fail("a map");
+  for (const auto& kv : node_) {
+    const std::string k = kv.first.as<std::string>();
+    bool ok = false;
+    std::string list;
+    for (const char* a : allowed) {
+      ok |= k == a;
+      list += list.empty() ? "" : ", ";
+      list += a;
+    }
+    if (!ok) {
+      std::ostringstream os;
+      const YAML::Mark m = kv.first.Mark();
+      os << file_ << ":" << m.line + 1 << ":" << m.column + 1 << ": unknown key '" << child_path(k)
+         << "': expected one of " << list;
+      throw ConfigError(os.str());
+    }
+  }
+}
+
+}  // namespace pedalwave::config

@@ -41,6 +41,7 @@ enum class FaultClass : std::uint8_t {
   kImplausible,        // NaN / out-of-range values
   kSaturation,         // persistent torque saturation
   kOverrun,            // cycle deadline missed persistently
+  kException,          // an exception escaped a stage or the driver (caught at the loop boundary)
   kCount
 };
 const char* to_string(FaultClass f) noexcept;

@@ -66,7 +66,7 @@ void MonitorState::sample_arrived(Topic t, const MessageInfo& info) {
   TopicStats& s = topics_[static_cast<std::size_t>(t)];
   ++s.count;
   ++s.window_count;
-  if (s.window_start_ns == 0) s.window_start_ns = info.recv_ns;
+  if (s.window_start_ns < 0) s.window_start_ns = info.recv_ns;
   switch (silence_.on_sample(info.recv_ns)) {
     case SilenceTracker::Transition::kFirstContact:
       notice(info.recv_ns, "robot found: receiving telemetry");
@@ -140,7 +140,7 @@ void MonitorState::tick(std::int64_t now_ns) {
                                1e-9 * static_cast<double>(silence_.timeout_ns())));
   }
   for (TopicStats& s : topics_) {
-    if (s.window_start_ns == 0) continue;
+    if (s.window_start_ns < 0) continue;
     const std::int64_t dt = now_ns - s.window_start_ns;
     if (dt >= kRateWindowNs) {
       s.rate_hz = static_cast<double>(s.window_count) * 1e9 / static_cast<double>(dt);

@@ -53,7 +53,7 @@ class MonitorState final : public TelemetryListener {
   struct TopicStats {
     std::uint64_t count = 0;
     std::uint64_t window_count = 0;
-    std::int64_t window_start_ns = 0;
+    std::int64_t window_start_ns = -1;   // -1: no sample yet [ns]
     double rate_hz = 0.0;
   };
   void sample_arrived(Topic t, const MessageInfo& info);

@@ -71,6 +71,8 @@ struct DriverCounters {
   std::uint64_t malformed = 0;     // wrong length / id / framing
   std::uint64_t bus_errors = 0;    // error frames (bus-off, error-passive, controller problems)
   std::uint64_t tx_dropped = 0;    // writes the kernel/bus refused (EAGAIN, ENOBUFS)
+  std::uint64_t rx_dropped = 0;    // frames the kernel dropped from a full receive queue
+                                   // (SocketCAN SO_RXQ_OVFL; serial: input overrun)
 };
 
 // The one interface the runtime cycle uses. Everything is sized and opened before the loop

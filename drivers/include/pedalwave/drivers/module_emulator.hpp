@@ -1,0 +1,185 @@
+// Module emulator ("virtual robot" modules): answers as the robot's SEA modules would, on a CAN
+// transport (socket-pair end or raw CAN socket) or on the far end of a serial line (pty master),
+// with configurable fault injection (drivers/PROTOCOL.md §6).
+//
+// Behaviour of every emulated module j (node / ID j+1):
+//  - On SYNC (CAN) or the broadcast sync-counter write (serial) at time t:
+//      plant.advance_to(t)          integrate with the command applied so far
+//      plant.measure(fb)            sample β, β̇, deflection, module status
+//      apply latched commands       the command received since the previous SYNC takes effect
+//    then (CAN) send the feedback frames, or (serial) keep the sample for the next Sync Read.
+//  - A command frame is latched; a torque-off command takes effect at once.
+//  - Command lifetime: if no valid command frame arrived for command_timeout_ns, the module drops
+//    to safe torque (torque off, u = 0) and reports kStatusTorqueOff until a command arrives.
+//    Modules start torque-off until their first command.
+//  - Classic CAN: gains (kp, kd) come from the gains frame and stay until the next one.
+// Fault injection (from SYNC number onset_sync on): reply latency, per-frame loss probability,
+// per-frame bit-error probability (one payload bit flipped so the checksum fails), a module that
+// stops answering, a module whose echoed counter repeats or goes backwards by one per SYNC.
+//
+// run(stop) loops on the calling thread until `stop` becomes true (checked at least every 1 ms);
+// start it on its own thread. The emulator does not own the file descriptor.
+#pragma once
+
+#include <linux/can.h>
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <random>
+
+#include "pedalwave/drivers/dynamixel.hpp"
+#include "pedalwave/drivers/io.hpp"
+
+namespace pedalwave::drivers {
+
+// What the emulated modules drive. The real plant model is wired in by the simulation layer.
+class ModulePlant {
+ public:
+  virtual ~ModulePlant() = default;
+  // From now on, module j applies u_j = tau_j + kp_j (beta_ref_j − β_j) + kd_j (beta_dot_ref_j − β̇_j)
+  // at its internal rate; a torque-off joint has tau = kp = kd = 0 (u = 0), cmd.torque_off means
+  // every joint is off.
+  virtual void apply(const Command& cmd) = 0;
+  // Sample the current state: joints, beta, beta_dot, deflection and module status bits
+  // (kStatusSaturated, kStatusOverTemp, kStatusEncoderFault); stamp/seq are set by the caller.
+  virtual void measure(Feedback& out) = 0;
+  // Integrate the plant up to absolute time t_ns (CLOCK_MONOTONIC) [ns].
+  virtual void advance_to(std::int64_t t_ns) = 0;
+};
+
+enum class CounterFault : std::uint8_t {
+  kNone = 0,
+  kRepeat,     // the module keeps echoing the same counter
+  kBackwards,  // the echoed counter decreases by one per SYNC
+};
+
+struct ModuleFault {
+  bool silent = false;                         // the module stops answering
+  CounterFault counter = CounterFault::kNone;  // rolling-counter fault
+};
+
+struct FaultConfig {
+  std::int64_t reply_latency_ns = 0;  // delay from SYNC / Sync Read to the answer [ns]
+  double frame_loss = 0.0;            // probability that an answer frame/packet is not sent [-]
+  double bit_error = 0.0;             // probability that one payload bit of an answer is flipped [-]
+  std::array<ModuleFault, kMaxJoints> module{};  // per joint, (N-1)
+  std::uint64_t onset_sync = 1;       // faults act from this SYNC on (1 = the first) [-]
+  std::uint32_t seed = 1;             // random generator seed [-]
+};
+
+struct EmulatorConfig {
+  int joints = 5;                                // modules, nodes/IDs 1…joints [-]
+  bool fd = false;                               // CAN: FD frame set (command groups, FD replies)
+  std::int64_t command_timeout_ns = 50'000'000;  // command lifetime [ns]
+  FaultConfig faults{};
+};
+
+// Counters of the emulated side (read from any thread).
+struct EmulatorStats {
+  std::atomic<std::uint64_t> syncs{0};           // SYNCs handled [-]
+  std::atomic<std::uint64_t> replies_sent{0};    // feedback frames / status packets sent [-]
+  std::atomic<std::uint64_t> replies_dropped{0}; // not sent because of injected loss/silence [-]
+  std::atomic<std::uint64_t> replies_corrupted{0};  // sent with an injected bit error [-]
+  std::atomic<std::uint64_t> commands{0};        // valid command frames / blocks latched [-]
+  std::atomic<std::uint64_t> torque_off_cmds{0}; // of which torque-off [-]
+  std::atomic<std::uint64_t> lifetime_expired{0};// module dropped to torque-off (timeout) [-]
+  std::atomic<std::uint64_t> rx_errors{0};       // malformed / CRC-failed frames received [-]
+};
+
+// The modules' state and fault logic, shared by the CAN and serial front ends.
+class ModuleBank {
+ public:
+  ModuleBank(const EmulatorConfig& cfg, ModulePlant& plant);
+  int joints() const { return cfg_.joints; }
+  // SYNC with counter c at time t: advance, measure, check lifetimes, apply latched commands.
+  void on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept;
+  // Latch joint j's command (gains only if has_gains). torque_off applies at once.
+  void latch(int j, double tau, double beta_ref, double beta_dot_ref, bool has_gains, double kp,
+             double kd, bool torque_off, std::int64_t t_ns) noexcept;
+  void latch_gains(int j, double kp, double kd) noexcept;
+  // After on_sync: the sample and the counter module j echoes.
+  const Feedback& sample() const { return sample_; }
+  std::uint8_t echo(int j) const { return echo_[static_cast<std::size_t>(j)]; }
+  bool faults_active() const { return syncs_ >= cfg_.faults.onset_sync; }
+  bool silent(int j) const;
+  bool lose() noexcept;     // draw: drop this answer?
+  bool corrupt() noexcept;  // draw: flip a bit in this answer?
+  std::uint32_t random() noexcept { return static_cast<std::uint32_t>(rng_()); }
+  std::int64_t latency_ns() const { return faults_active() ? cfg_.faults.reply_latency_ns : 0; }
+  const EmulatorConfig& config() const { return cfg_; }
+  EmulatorStats& stats() { return stats_; }
+  bool torque_off(int j) const { return off_[static_cast<std::size_t>(j)]; }
+
+ private:
+  void apply_now() noexcept;
+
+  EmulatorConfig cfg_;
+  ModulePlant& plant_;
+  EmulatorStats stats_;
+  std::mt19937 rng_;
+  std::uint64_t syncs_ = 0;
+  Feedback sample_{};
+  Command latched_{};                      // latest command per joint (applied at SYNC)
+  std::array<std::int64_t, kMaxJoints> last_cmd_ns_{};
+  std::array<bool, kMaxJoints> have_cmd_{};
+  std::array<bool, kMaxJoints> off_{};      // joint is torque-off
+  std::array<bool, kMaxJoints> cmd_off_{};  // latched command says torque-off
+  std::array<std::uint8_t, kMaxJoints> echo_{};
+};
+
+// CAN front end: reads SYNC / command / gains / FD command frames, sends feedback frames.
+class CanModuleEmulator {
+ public:
+  CanModuleEmulator(int fd, const EmulatorConfig& cfg, ModulePlant& plant);
+  void run(const std::atomic<bool>& stop);
+  const EmulatorStats& stats() { return bank_.stats(); }
+  ModuleBank& bank() { return bank_; }
+
+ private:
+  struct Pending {
+    std::int64_t due_ns = 0;   // send time, CLOCK_MONOTONIC [ns]
+    std::size_t size = 0;      // CAN_MTU or CANFD_MTU [bytes]
+    canfd_frame frame{};
+  };
+  void handle(const canfd_frame& rec, std::size_t n, std::int64_t now) noexcept;
+  void handle_classic(const can_frame& f, std::int64_t now) noexcept;
+  void on_sync(std::uint8_t counter, std::int64_t now) noexcept;
+  void flush(std::int64_t now) noexcept;
+
+  int fd_;
+  ModuleBank bank_;
+  std::array<Pending, 256> queue_{};  // ring of answers waiting for their due time
+  std::size_t head_ = 0, tail_ = 0;
+};
+
+// Serial (DYNAMIXEL 2.0) front end on a pty master or a tty.
+class SerialModuleEmulator {
+ public:
+  SerialModuleEmulator(int fd, const EmulatorConfig& cfg, ModulePlant& plant);
+  void run(const std::atomic<bool>& stop);
+  const EmulatorStats& stats() { return bank_.stats(); }
+  ModuleBank& bank() { return bank_; }
+
+ private:
+  struct Pending {
+    std::int64_t due_ns = 0;   // send time, CLOCK_MONOTONIC [ns]
+    std::size_t len = 0;       // bytes still to send [bytes]
+    std::size_t off = 0;       // bytes already sent [bytes]
+    std::array<std::uint8_t, 64> bytes{};
+  };
+  void handle(std::int64_t now) noexcept;
+  void enqueue(std::int64_t due, const std::uint8_t* p, std::size_t n) noexcept;
+  void process(std::int64_t now) noexcept;
+  void flush(std::int64_t now) noexcept;
+
+  int fd_;
+  ModuleBank bank_;
+  std::array<std::uint8_t, 4096> rx_{};
+  dxl::Packet pkt_{};
+  std::size_t rx_len_ = 0;
+  std::array<Pending, 256> queue_{};
+  std::size_t head_ = 0, tail_ = 0;
+};
+
+}  // namespace pedalwave::drivers

@@ -1,0 +1,454 @@
+#include "pedalwave/drivers/module_emulator.hpp"
+
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+
+#include "pedalwave/drivers/can_protocol.hpp"
+#include "pedalwave/drivers/wire.hpp"
+#include "posix_util.hpp"
+
+namespace pedalwave::drivers {
+namespace {
+
+constexpr std::int64_t kPollSliceNs = 1'000'000;  // stop flag checked at least every 1 ms
+
+// Wait for input or until `until_ns`, at most one slice. Returns poll's revents (0 on timeout).
+short wait_input(int fd, std::int64_t now, std::int64_t until_ns) noexcept {
+  std::int64_t wait = kPollSliceNs;
+  if (until_ns > 0 && until_ns - now < wait) wait = until_ns - now;
+  if (wait < 0) wait = 0;
+  pollfd p{fd, POLLIN, 0};
+  const timespec ts = detail::to_timespec(wait);
+  if (::ppoll(&p, 1, &ts, nullptr) <= 0) return 0;
+  return p.revents;
+}
+
+void sleep_ns(std::int64_t ns) noexcept {
+  const timespec ts = detail::to_timespec(ns);
+  ::clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, nullptr);
+}
+
+}  // namespace
+
+// ---- ModuleBank ---------------------------------------------------------------------------------
+ModuleBank::ModuleBank(const EmulatorConfig& cfg, ModulePlant& plant)
+    : cfg_(cfg), plant_(plant), rng_(cfg.faults.seed) {
+  if (cfg.joints < 1 || cfg.joints > kMaxJoints)
+    throw std::invalid_argument("module emulator: joints = " + std::to_string(cfg.joints) +
+                                ", expected 1…" + std::to_string(kMaxJoints));
+  if (cfg.command_timeout_ns <= 0)
+    throw std::invalid_argument("module emulator: command_timeout_ns = " +
+                                std::to_string(cfg.command_timeout_ns) + ", expected > 0");
+  if (!(cfg.faults.frame_loss >= 0 && cfg.faults.frame_loss <= 1) ||
+      !(cfg.faults.bit_error >= 0 && cfg.faults.bit_error <= 1) || cfg.faults.reply_latency_ns < 0)
+    throw std::invalid_argument(
+        "module emulator: frame_loss = " + std::to_string(cfg.faults.frame_loss) +
+        ", bit_error = " + std::to_string(cfg.faults.bit_error) + ", reply_latency_ns = " +
+        std::to_string(cfg.faults.reply_latency_ns) + "; expected probabilities in [0, 1] and "
+        "latency ≥ 0");
+  latched_.joints = cfg.joints;
+  sample_.joints = cfg.joints;
+  off_.fill(true);  // torque off until the first command
+  apply_now();
+}
+
+bool ModuleBank::silent(int j) const {
+  return faults_active() && cfg_.faults.module[static_cast<std::size_t>(j)].silent;
+}
+
+bool ModuleBank::lose() noexcept {
+  if (!faults_active() || cfg_.faults.frame_loss <= 0) return false;
+  return std::uniform_real_distribution<double>(0.0, 1.0)(rng_) < cfg_.faults.frame_loss;
+}
+
+bool ModuleBank::corrupt() noexcept {
+  if (!faults_active() || cfg_.faults.bit_error <= 0) return false;
+  return std::uniform_real_distribution<double>(0.0, 1.0)(rng_) < cfg_.faults.bit_error;
+}
+
+void ModuleBank::apply_now() noexcept {
+  Command c = latched_;
+  c.joints = cfg_.joints;
+  bool all_off = true;
+  for (int j = 0; j < cfg_.joints; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    if (off_[ju]) {
+      c.tau[ju] = 0.0;
+      c.kp[ju] = 0.0;
+      c.kd[ju] = 0.0;
+    } else {
+      all_off = false;
+    }
+  }
+  c.torque_off = all_off;
+  plant_.apply(c);
+}
+
+void ModuleBank::on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept {
+  ++syncs_;
+  stats_.syncs.fetch_add(1, std::memory_order_relaxed);
+  // 1. Integrate up to the SYNC with the command applied so far, then sample.
+  plant_.advance_to(t_ns);
+  plant_.measure(sample_);
+  sample_.joints = cfg_.joints;
+  sample_.seq = syncs_;
+  sample_.stamp_ns = t_ns;
+  // 2. Command lifetime, then the latched commands take effect.
+  for (int j = 0; j < cfg_.joints; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    const bool expired = have_cmd_[ju] && t_ns - last_cmd_ns_[ju] > cfg_.command_timeout_ns;
+    if (expired) {
+      have_cmd_[ju] = false;
+      stats_.lifetime_expired.fetch_add(1, std::memory_order_relaxed);
+    }
+    off_[ju] = !have_cmd_[ju] || cmd_off_[ju];
+    sample_.status[ju] = static_cast<std::uint16_t>(
+        (sample_.status[ju] & wire::kModuleStatusMask & ~kStatusTorqueOff) |
+        (off_[ju] ? kStatusTorqueOff : 0));
+  }
+  apply_now();
+  // 3. The counter each module echoes (rolling-counter faults).
+  for (int j = 0; j < cfg_.joints; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    const CounterFault f = faults_active() ? cfg_.faults.module[ju].counter : CounterFault::kNone;
+    if (f == CounterFault::kNone) echo_[ju] = counter;
+    else if (f == CounterFault::kBackwards) echo_[ju] = static_cast<std::uint8_t>(echo_[ju] - 1);
+    // kRepeat: keep the previous echo
+  }
+}
+
+void ModuleBank::latch(int j, double tau, double beta_ref, double beta_dot_ref, bool has_gains,
+                       double kp, double kd, bool torque_off, std::int64_t t_ns) noexcept {
+  if (j < 0 || j >= cfg_.joints) return;
+  const auto ju = static_cast<std::size_t>(j);
+  latched_.tau[ju] = tau;
+  latched_.beta_ref[ju] = beta_ref;
+  latched_.beta_dot_ref[ju] = beta_dot_ref;
+  if (has_gains) {
+    latched_.kp[ju] = kp;
+    latched_.kd[ju] = kd;
+  }
+  last_cmd_ns_[ju] = t_ns;
+  have_cmd_[ju] = true;
+  cmd_off_[ju] = torque_off;
+  stats_.commands.fetch_add(1, std::memory_order_relaxed);
+  if (torque_off) {
+    stats_.torque_off_cmds.fetch_add(1, std::memory_order_relaxed);
+    if (!off_[ju]) {
+      off_[ju] = true;  // safe torque off acts at once, not at the next SYNC
+      apply_now();
+    }
+  }
+}
+
+void ModuleBank::latch_gains(int j, double kp, double kd) noexcept {
+  if (j < 0 || j >= cfg_.joints) return;
+  latched_.kp[static_cast<std::size_t>(j)] = kp;
+  latched_.kd[static_cast<std::size_t>(j)] = kd;
+}
+
+// ---- CAN front end ------------------------------------------------------------------------------
+CanModuleEmulator::CanModuleEmulator(int fd, const EmulatorConfig& cfg, ModulePlant& plant)
+    : fd_(fd), bank_(cfg, plant) {
+  if (fd < 0 || !detail::set_nonblocking(fd))
+    throw std::invalid_argument("CAN module emulator: fd = " + std::to_string(fd) +
+                                ", expected an open socket");
+}
+
+void CanModuleEmulator::run(const std::atomic<bool>& stop) {
+  while (!stop.load(std::memory_order_acquire)) {
+    std::int64_t now = detail::monotonic_ns();
+    const std::int64_t due = head_ != tail_ ? queue_[head_].due_ns : 0;
+    const short ev = wait_input(fd_, now, due);
+    bool got = false;
+    for (;;) {
+      canfd_frame f{};
+      const ssize_t n = ::recv(fd_, &f, sizeof f, MSG_DONTWAIT);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) break;
+      got = true;
+      handle(f, static_cast<std::size_t>(n), detail::monotonic_ns());
+    }
+    if (!got && (ev & (POLLHUP | POLLERR))) sleep_ns(kPollSliceNs);  // peer gone: don't spin
+    now = detail::monotonic_ns();
+    flush(now);
+  }
+}
+
+void CanModuleEmulator::handle(const canfd_frame& rec, std::size_t n, std::int64_t now) noexcept {
+  can_frame c{};
+  if (n == CAN_MTU) {
+    std::memcpy(&c, &rec, CAN_MTU);
+    handle_classic(c, now);
+    return;
+  }
+  if (n != CANFD_MTU) {
+    bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  if (can::fd_to_classic(rec, c)) {
+    handle_classic(c, now);
+    return;
+  }
+  can::FdCommandGroup grp{};
+  const canid_t id = rec.can_id & CAN_SFF_MASK;
+  if (id < can::kFdCommandBase || id >= can::kFdCommandBase + can::kMaxFdGroups) return;
+  if (can::decode_fd_command(rec, grp) != can::CodecStatus::kOk) {
+    bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  for (int k = 0; k < grp.count; ++k) {
+    const can::FdJointCommand& jc = grp.joint[static_cast<std::size_t>(k)];
+    bank_.latch(grp.group * can::kFdJointsPerFrame + k, jc.tau, jc.beta_ref, jc.beta_dot_ref, true,
+                jc.kp, jc.kd, grp.torque_off, now);
+  }
+}
+
+void CanModuleEmulator::handle_classic(const can_frame& f, std::int64_t now) noexcept {
+  if (f.can_id & (CAN_ERR_FLAG | CAN_RTR_FLAG | CAN_EFF_FLAG)) return;
+  const canid_t id = f.can_id & CAN_SFF_MASK;
+  int node = 0;
+  if (id == can::kSyncId) {
+    std::uint8_t ctr = 0;
+    if (can::decode_sync(f, ctr) == can::CodecStatus::kOk) on_sync(ctr, now);
+    else bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
+  } else if (id > can::kCommandBase && id <= can::kCommandBase + can::kMaxNode) {
+    can::JointCommand jc{};
+    if (can::decode_command(f, node, jc) == can::CodecStatus::kOk)
+      bank_.latch(can::joint_of_node(node), jc.tau, jc.beta_ref, jc.beta_dot_ref, false, 0.0, 0.0,
+                  jc.torque_off, now);
+    else bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
+  } else if (id > can::kGainsBase && id <= can::kGainsBase + can::kMaxNode) {
+    can::JointGains g{};
+    if (can::decode_gains(f, node, g) == can::CodecStatus::kOk)
+      bank_.latch_gains(can::joint_of_node(node), g.kp, g.kd);
+    else bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
+  }
+  // Other ids (e.g. other modules' feedback on a real bus) are not ours.
+}
+
+void CanModuleEmulator::on_sync(std::uint8_t counter, std::int64_t now) noexcept {
+  bank_.on_sync(counter, now);
+  const Feedback& s = bank_.sample();
+  const std::int64_t due = now + bank_.latency_ns();
+  EmulatorStats& st = bank_.stats();
+  for (int j = 0; j < bank_.joints(); ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    if (bank_.silent(j) || bank_.lose()) {
+      st.replies_dropped.fetch_add(1, std::memory_order_relaxed);
+      continue;
+    }
+    can::ModuleFeedback fb{s.beta[ju], s.beta_dot[ju], s.deflection[ju], s.status[ju],
+                           bank_.echo(j)};
+    can_frame f{};
+    can::encode_feedback(can::node_of_joint(j), fb, f);
+    if (bank_.corrupt()) {
+      const std::uint32_t r = bank_.random();
+      f.data[r % 8] ^= static_cast<std::uint8_t>(1u << ((r >> 8) % 8));
+      st.replies_corrupted.fetch_add(1, std::memory_order_relaxed);
+    }
+    const std::size_t next = (tail_ + 1) % queue_.size();
+    if (next == head_) {  // queue full: the answer is lost
+      st.replies_dropped.fetch_add(1, std::memory_order_relaxed);
+      continue;
+    }
+    Pending& p = queue_[tail_];
+    p.due_ns = due;
+    std::memset(&p.frame, 0, sizeof p.frame);
+    p.frame.can_id = f.can_id;
+    p.frame.len = f.len;
+    std::memcpy(p.frame.data, f.data, 8);
+    if (bank_.config().fd) {
+      p.frame.flags = CANFD_BRS;
+      p.size = CANFD_MTU;
+    } else {
+      p.size = CAN_MTU;  // struct can_frame has the same layout for the first CAN_MTU bytes
+    }
+    tail_ = next;
+  }
+  flush(now);
+}
+
+void CanModuleEmulator::flush(std::int64_t now) noexcept {
+  while (head_ != tail_ && queue_[head_].due_ns <= now) {
+    const Pending& p = queue_[head_];
+    const ssize_t r = ::send(fd_, &p.frame, p.size, MSG_DONTWAIT | MSG_NOSIGNAL);
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) return;
+    if (r == static_cast<ssize_t>(p.size))
+      bank_.stats().replies_sent.fetch_add(1, std::memory_order_relaxed);
+    head_ = (head_ + 1) % queue_.size();
+  }
+}
+
+// ---- Serial front end ---------------------------------------------------------------------------
+SerialModuleEmulator::SerialModuleEmulator(int fd, const EmulatorConfig& cfg, ModulePlant& plant)
+    : fd_(fd), bank_(cfg, plant) {
+  if (fd < 0 || !detail::set_nonblocking(fd))
+    throw std::invalid_argument("serial module emulator: fd = " + std::to_string(fd) +
+                                ", expected an open tty/pty");
+}
+
+void SerialModuleEmulator::run(const std::atomic<bool>& stop) {
+  while (!stop.load(std::memory_order_acquire)) {
+    std::int64_t now = detail::monotonic_ns();
+    const std::int64_t due = head_ != tail_ ? queue_[head_].due_ns : 0;
+    const short ev = wait_input(fd_, now, due);
+    bool got = false;
+    for (;;) {
+      if (rx_len_ == rx_.size()) rx_len_ = 0;  // overrun: drop everything (a resync follows)
+      const ssize_t n = ::read(fd_, rx_.data() + rx_len_, rx_.size() - rx_len_);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) break;
+      rx_len_ += static_cast<std::size_t>(n);
+      got = true;
+    }
+    if (got) process(detail::monotonic_ns());
+    if (!got && (ev & (POLLHUP | POLLERR))) sleep_ns(kPollSliceNs);  // no peer yet / any more
+    now = detail::monotonic_ns();
+    flush(now);
+  }
+}
+
+void SerialModuleEmulator::process(std::int64_t now) noexcept {
+  std::size_t pos = 0;
+  while (pos < rx_len_) {
+    std::size_t used = 0;
+    const dxl::DxlStatus s = dxl::parse_packet(
+        std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
+    if (s == dxl::DxlStatus::kNeedMore) break;
+    if (s == dxl::DxlStatus::kOk) handle(now);
+    else bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
+    pos += used;
+  }
+  if (pos > 0) {
+    std::memmove(rx_.data(), rx_.data() + pos, rx_len_ - pos);
+    rx_len_ -= pos;
+  }
+}
+
+void SerialModuleEmulator::enqueue(std::int64_t due, const std::uint8_t* p, std::size_t n) noexcept {
+  const std::size_t next = (tail_ + 1) % queue_.size();
+  if (next == head_ || n > queue_[tail_].bytes.size()) {
+    bank_.stats().replies_dropped.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  Pending& q = queue_[tail_];
+  q.due_ns = due;
+  q.len = n;
+  q.off = 0;
+  std::memcpy(q.bytes.data(), p, n);
+  tail_ = next;
+}
+
+void SerialModuleEmulator::handle(std::int64_t now) noexcept {
+  const dxl::Packet& p = pkt_;
+  EmulatorStats& st = bank_.stats();
+  const int joints = bank_.joints();
+  auto ours = [&](std::uint8_t id) { return id >= 1 && id <= joints; };
+  const std::uint16_t addr = p.param_count >= 2 ? wire::get_u16(p.params.data()) : 0;
+
+  // Broadcast write of the sync counter: the serial bus's SYNC.
+  if (p.instruction == dxl::kInstWrite && p.id == dxl::kBroadcastId && p.param_count == 3 &&
+      addr == dxl::kRegSyncCounter) {
+    bank_.on_sync(p.params[2], now);
+    return;
+  }
+  if (p.instruction == dxl::kInstSyncRead && p.id == dxl::kBroadcastId && p.param_count >= 5) {
+    const std::uint16_t len = wire::get_u16(p.params.data() + 2);
+    if (addr != dxl::kRegFeedback || len != dxl::kFeedbackBlockSize) {
+      st.rx_errors.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    const Feedback& s = bank_.sample();
+    const std::int64_t due = now + bank_.latency_ns();
+    for (std::size_t k = 4; k < p.param_count; ++k) {
+      const std::uint8_t id = p.params[k];
+      if (!ours(id)) continue;  // another device on the bus answers for itself
+      const int j = id - 1;
+      const auto ju = static_cast<std::size_t>(j);
+      if (bank_.silent(j) || bank_.lose()) {
+        st.replies_dropped.fetch_add(1, std::memory_order_relaxed);
+        continue;
+      }
+      dxl::FeedbackBlock fb{s.beta[ju], s.beta_dot[ju], s.deflection[ju], s.status[ju],
+                            bank_.echo(j)};
+      std::uint8_t block[dxl::kFeedbackBlockSize];
+      dxl::encode_feedback_block(fb, block);
+      const std::uint8_t err =
+          (s.status[ju] & (kStatusOverTemp | kStatusEncoderFault)) ? dxl::kErrAlert : 0;
+      std::array<std::uint8_t, 64> out{};
+      std::size_t n = 0;
+      if (dxl::build_status(id, err, block, out, n) != dxl::DxlStatus::kOk) continue;
+      if (bank_.corrupt()) {
+        // Flip one bit of a parameter byte (after the header and length), so the CRC fails.
+        const std::uint32_t r = bank_.random();
+        const std::size_t first = dxl::kHeaderSize + 2, span = n - 2 - first;
+        out[first + r % span] ^= static_cast<std::uint8_t>(1u << ((r >> 8) % 8));
+        st.replies_corrupted.fetch_add(1, std::memory_order_relaxed);
+      }
+      enqueue(due, out.data(), n);
+    }
+    flush(now);
+    return;
+  }
+  if (p.instruction == dxl::kInstSyncWrite && p.id == dxl::kBroadcastId && p.param_count >= 4) {
+    const std::uint16_t len = wire::get_u16(p.params.data() + 2);
+    if (addr != dxl::kRegCommand || len != dxl::kCommandBlockSize ||
+        (p.param_count - 4) % (1u + len) != 0) {
+      st.rx_errors.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    for (std::size_t k = 4; k + 1 + len <= p.param_count; k += 1u + len) {
+      const std::uint8_t id = p.params[k];
+      if (!ours(id)) continue;
+      dxl::CommandBlock c{};
+      dxl::decode_command_block(p.params.data() + k + 1, c);
+      bank_.latch(id - 1, c.tau, c.beta_ref, c.beta_dot_ref, true, c.kp, c.kd, c.torque_off, now);
+    }
+    return;
+  }
+  if (p.instruction == dxl::kInstPing && (ours(p.id) || p.id == dxl::kBroadcastId)) {
+    for (int j = 0; j < joints; ++j) {
+      const auto id = static_cast<std::uint8_t>(j + 1);
+      if (p.id != dxl::kBroadcastId && p.id != id) continue;
+      const std::uint8_t info[3] = {static_cast<std::uint8_t>(dxl::kModelNumber & 0xFF),
+                                    static_cast<std::uint8_t>(dxl::kModelNumber >> 8), 1};
+      std::array<std::uint8_t, 64> out{};
+      std::size_t n = 0;
+      if (dxl::build_status(id, 0, info, out, n) == dxl::DxlStatus::kOk) enqueue(now, out.data(), n);
+    }
+    flush(now);
+    return;
+  }
+  if (ours(p.id)) {  // unsupported instruction addressed to one of us
+    const std::uint8_t none[1] = {0};
+    std::array<std::uint8_t, 64> out{};
+    std::size_t n = 0;
+    if (dxl::build_status(p.id, dxl::kErrInstruction, std::span<const std::uint8_t>(none, 0), out,
+                          n) == dxl::DxlStatus::kOk)
+      enqueue(now, out.data(), n);
+    flush(now);
+  }
+}
+
+void SerialModuleEmulator::flush(std::int64_t now) noexcept {
+  while (head_ != tail_ && queue_[head_].due_ns <= now) {
+    Pending& q = queue_[head_];
+    const ssize_t r = ::write(fd_, q.bytes.data() + q.off, q.len - q.off);
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) return;  // EAGAIN: try again later
+    q.off += static_cast<std::size_t>(r);
+    if (q.off < q.len) return;
+    bank_.stats().replies_sent.fetch_add(1, std::memory_order_relaxed);
+    head_ = (head_ + 1) % queue_.size();
+  }
+}
+
+}  // namespace pedalwave::drivers

@@ -104,6 +104,8 @@ class Simulation {
   Plant& plant() { return plant_; }
   Integrator& integrator() { return integ_; }
   double t() const { return t_; }
+  const VectorXd& q() const { return q_; }
+  const VectorXd& v() const { return v_; }
   VectorXd& q() { return q_; }
   VectorXd& v() { return v_; }
 

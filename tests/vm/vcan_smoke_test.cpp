@@ -17,8 +17,8 @@
 #include <net/if.h>
 #include <poll.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/ioctl.h>
+#include <sys/prctl.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -34,8 +34,6 @@
 #include <sstream>
 #include <string>
 #include <vector>
-
-extern char** environ;
 
 namespace {
 
@@ -167,7 +165,7 @@ void send_classic(const Fd& s, canid_t id, std::vector<std::uint8_t> data) {
   can_frame f{};
   f.can_id = id;
   f.len = static_cast<std::uint8_t>(data.size());
-  std::memcpy(f.data, data.data(), data.size());
+  if (!data.empty()) std::memcpy(f.data, data.data(), data.size());
   ASSERT_EQ(::write(s.get(), &f, CAN_MTU), static_cast<ssize_t>(CAN_MTU)) << std::strerror(errno);
 }
 
@@ -176,7 +174,7 @@ void send_fd(const Fd& s, canid_t id, std::uint8_t flags, const std::vector<std:
   f.can_id = id;
   f.flags = flags;
   f.len = static_cast<std::uint8_t>(data.size());
-  std::memcpy(f.data, data.data(), data.size());
+  if (!data.empty()) std::memcpy(f.data, data.data(), data.size());
   ASSERT_EQ(::write(s.get(), &f, CANFD_MTU), static_cast<ssize_t>(CANFD_MTU))
       << std::strerror(errno);
 }
@@ -351,18 +349,24 @@ std::string find_on_path(const std::string& name) {
 // A running `candump -L vcan0` whose stdout we read line by line.
 class Candump {
  public:
+  // fork + exec rather than posix_spawn: the child asks for SIGKILL when the test process dies
+  // (PR_SET_PDEATHSIG), so a crashed or aborted test never leaves candump holding ctest's pipes.
   explicit Candump(const std::string& exe) {
     int p[2];
     if (::pipe2(p, O_CLOEXEC) != 0) return;
     out_ = Fd(p[0]);
     Fd write_end(p[1]);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_adddup2(&actions, write_end.get(), STDOUT_FILENO);
     std::string a0 = exe, a1 = "-L", a2 = kIfName;
     char* argv[] = {a0.data(), a1.data(), a2.data(), nullptr};
-    if (::posix_spawn(&pid_, exe.c_str(), &actions, nullptr, argv, environ) != 0) pid_ = -1;
-    posix_spawn_file_actions_destroy(&actions);
+    const pid_t parent = ::getpid();
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      // Child: async-signal-safe calls only.
+      if (::prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || ::getppid() != parent) ::_exit(126);
+      if (::dup2(write_end.get(), STDOUT_FILENO) < 0) ::_exit(126);
+      ::execv(exe.c_str(), argv);
+      ::_exit(127);
+    }
   }
   Candump(const Candump&) = delete;
   Candump& operator=(const Candump&) = delete;

@@ -1,0 +1,97 @@
+// Serial servo-bus driver: DYNAMIXEL Protocol 2.0 to the pedalwave modules (dynamixel.hpp,
+// PROTOCOL.md §3, §4) over a tty in raw mode (termios), or an injected fd (pty for tests).
+//
+// Cycle (Driver contract): read() first parses what is already waiting (answers to older cycles:
+// late / duplicate / out-of-order; a packet still incomplete from before is a short read, counted
+// as malformed and dropped), then sends one buffer holding the broadcast Write of the cycle
+// counter c to register 96 (the serial bus's SYNC) and the Sync Read (0x82) of the 8-byte
+// feedback block at 120 from IDs 1…J, and gathers the J status packets until deadline_ns
+// (ppoll on the remaining time). Status packets are checked (CRC-16, framing, id, length, error
+// field) and classified with the rolling counter (8-bit echo of c). write() sends one Sync Write
+// (0x83) of the 12-byte command block at 100 (tagged with c) to every module; safe_stop() sends
+// it with the torque-off flag. Timeouts are `missing` (+ IoStatus::kTimeout/kPartial), CRC errors
+// `checksum` (also a module-reported CRC error, error number 3), framing/length/id errors and
+// short reads `malformed`.
+// RS-485 half-duplex assumption: the adapter switches direction itself and does not echo the
+// host's own bytes (e.g. an FTDI/U2D2-style adapter with automatic direction control).
+// read()/write()/safe_stop() never allocate, lock, throw or block past their deadline (write():
+// write_timeout_ns).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "pedalwave/drivers/dynamixel.hpp"
+#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/drivers/rolling_counter.hpp"
+
+namespace pedalwave::drivers {
+
+struct SerialConfig {
+  std::string device = "/dev/ttyUSB0";  // tty for open()
+  int baud = 4'000'000;                 // [bit/s], 8N1
+  int joints = 5;                       // modules, IDs 1…joints [-]
+  double period_s = 1e-3;               // cycle period, for the budget check [s]
+  double return_delay_s = 20e-6;        // modules' return delay, for the budget check [s]
+  double turnaround_s = 0.0;            // host turnaround per exchange, for the budget check [s]
+  double max_load = 0.8;                // admissible bus occupation per cycle [-]
+  std::int64_t write_timeout_ns = 200'000;  // longest write() waits for a full output queue [ns]
+};
+
+// Opens `path` as a raw 8N1 tty at `baud` (non-blocking, no flow control, VMIN = VTIME = 0).
+// Throws std::system_error / std::invalid_argument (unsupported baud rate) naming path and value.
+int open_serial_port(const std::string& path, int baud);
+
+class SerialDriver final : public Driver {
+ public:
+  // Checks the bus budget, opens cfg.device.
+  static std::unique_ptr<SerialDriver> open(const SerialConfig& cfg);
+  // Injected transport (a pty slave, a tty opened elsewhere): takes ownership of fd.
+  SerialDriver(int fd, const SerialConfig& cfg);
+  ~SerialDriver() override;
+  SerialDriver(const SerialDriver&) = delete;
+  SerialDriver& operator=(const SerialDriver&) = delete;
+
+  int joints() const override { return joints_; }
+  IoStatus read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback& out) override;
+  IoStatus write(const Command& cmd) override;
+  void safe_stop() override;
+  const DriverCounters& counters() const override { return counters_; }
+  std::uint8_t sync_counter() const { return counter_; }
+
+ private:
+  bool write_all(const std::uint8_t* p, std::size_t n, std::int64_t until_ns) noexcept;
+  void receive(std::int64_t stamp_ns) noexcept;   // read available bytes, parse
+  void parse(std::int64_t stamp_ns) noexcept;
+  void handle_status(const dxl::Packet& p, std::int64_t stamp_ns) noexcept;
+  bool send_commands(const Command* cmd, bool all_off, std::int64_t until_ns) noexcept;
+  void poll_overruns() noexcept;
+
+  int fd_ = -1;
+  int joints_ = 0;
+  std::int64_t write_timeout_ns_ = 0;
+  DriverCounters counters_{};
+  std::uint64_t cycle_ = 0;
+  std::uint8_t counter_ = 0;        // cycle counter c [-]
+  int fresh_count_ = 0;
+  std::int64_t deadline_ns_ = 0;
+  std::int64_t stamp_ns_ = 0;
+  bool garbage_run_ = false;        // inside a run of bytes without a header
+  bool icount_ok_ = true;           // TIOCGICOUNT supported
+  std::uint64_t overruns_ = 0;      // last kernel overrun count [-]
+  std::array<RollingCounterState, kMaxJoints> rc_{};
+  std::array<std::uint16_t, kMaxJoints> status_{};
+  std::array<dxl::FeedbackBlock, kMaxJoints> last_{};
+  std::array<std::uint8_t, kMaxJoints> ids_{};
+  std::array<std::uint8_t, 64 + kMaxJoints> sync_tx_{};  // sync-counter write + Sync Read
+  std::size_t sync_read_len_ = 0;
+  std::array<std::uint8_t, 4096> rx_{};
+  std::size_t rx_len_ = 0;
+  std::array<std::uint8_t, dxl::kMaxPacket> tx_{};
+  std::array<std::uint8_t, kMaxJoints * dxl::kCommandBlockSize> blocks_{};
+  dxl::Packet pkt_{};
+};
+
+}  // namespace pedalwave::drivers

@@ -1,0 +1,360 @@
+#include "pedalwave/drivers/serial_driver.hpp"
+
+#include <fcntl.h>
+#include <linux/serial.h>
+#include <poll.h>
+#include <sys/ioctl.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <stdexcept>
+#include <system_error>
+
+#include "pedalwave/drivers/bus_budget.hpp"
+#include "pedalwave/drivers/wire.hpp"
+#include "posix_util.hpp"
+
+namespace pedalwave::drivers {
+namespace {
+
+speed_t speed_of(int baud) {
+  switch (baud) {
+    case 9600: return B9600;
+    case 19200: return B19200;
+    case 38400: return B38400;
+    case 57600: return B57600;
+    case 115200: return B115200;
+    case 230400: return B230400;
+    case 460800: return B460800;
+    case 500000: return B500000;
+    case 921600: return B921600;
+    case 1000000: return B1000000;
+    case 1500000: return B1500000;
+    case 2000000: return B2000000;
+    case 3000000: return B3000000;
+    case 4000000: return B4000000;
+    default:
+      throw std::invalid_argument(
+          "serial baud = " + std::to_string(baud) +
+          ", expected one of 9600 19200 38400 57600 115200 230400 460800 500000 921600 1000000 "
+          "1500000 2000000 3000000 4000000");
+  }
+}
+
+}  // namespace
+
+int open_serial_port(const std::string& path, int baud) {
+  const speed_t speed = speed_of(baud);
+  const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0)
+    throw std::system_error(errno, std::generic_category(), "serial port '" + path + "': open");
+  termios t{};
+  if (::tcgetattr(fd, &t) != 0) {
+    const int e = errno;
+    ::close(fd);
+    throw std::system_error(e, std::generic_category(),
+                            "serial port '" + path + "': not a terminal (tcgetattr)");
+  }
+  ::cfmakeraw(&t);                 // 8 data bits, no parity, no echo, no line processing
+  t.c_cflag &= ~static_cast<tcflag_t>(CSTOPB | CRTSCTS);  // 1 stop bit, no hardware flow control
+  t.c_cflag |= CLOCAL | CREAD;
+  t.c_iflag &= ~static_cast<tcflag_t>(IXON | IXOFF | IXANY);
+  t.c_cc[VMIN] = 0;
+  t.c_cc[VTIME] = 0;
+  if (::cfsetispeed(&t, speed) != 0 || ::cfsetospeed(&t, speed) != 0 ||
+      ::tcsetattr(fd, TCSANOW, &t) != 0) {
+    const int e = errno;
+    ::close(fd);
+    throw std::system_error(e, std::generic_category(),
+                            "serial port '" + path + "': baud " + std::to_string(baud));
+  }
+  // Ask a USB-serial driver for low latency (ignored where unsupported, e.g. a pty).
+  serial_struct ss{};
+  if (::ioctl(fd, TIOCGSERIAL, &ss) == 0) {
+    ss.flags |= ASYNC_LOW_LATENCY;
+    (void)::ioctl(fd, TIOCSSERIAL, &ss);
+  }
+  ::tcflush(fd, TCIOFLUSH);
+  return fd;
+}
+
+std::unique_ptr<SerialDriver> SerialDriver::open(const SerialConfig& cfg) {
+  check_serial_bus_budget({cfg.joints, cfg.period_s, cfg.baud, cfg.return_delay_s,
+                           cfg.turnaround_s, cfg.max_load});
+  return std::make_unique<SerialDriver>(open_serial_port(cfg.device, cfg.baud), cfg);
+}
+
+SerialDriver::SerialDriver(int fd, const SerialConfig& cfg)
+    : fd_(fd), joints_(cfg.joints), write_timeout_ns_(cfg.write_timeout_ns) {
+  try {
+    if (fd < 0)
+      throw std::invalid_argument("SerialDriver: fd = " + std::to_string(fd) +
+                                  ", expected an open tty");
+    check_serial_bus_budget({cfg.joints, cfg.period_s, cfg.baud, cfg.return_delay_s,
+                             cfg.turnaround_s, cfg.max_load});
+    if (!detail::set_nonblocking(fd))
+      throw std::system_error(errno, std::generic_category(), "SerialDriver: O_NONBLOCK");
+    for (int j = 0; j < joints_; ++j) ids_[static_cast<std::size_t>(j)] = static_cast<std::uint8_t>(j + 1);
+    // The Sync Read never changes: build it once, behind room for the sync-counter write.
+    std::size_t n = 0;
+    if (dxl::build_sync_read(dxl::kRegFeedback, dxl::kFeedbackBlockSize,
+                             std::span<const std::uint8_t>(ids_.data(), static_cast<std::size_t>(joints_)),
+                             std::span<std::uint8_t>(sync_tx_.data() + 16, sync_tx_.size() - 16),
+                             n) != dxl::DxlStatus::kOk)
+      throw std::invalid_argument("SerialDriver: cannot build the Sync Read packet");
+    sync_read_len_ = n;
+  } catch (...) {
+    if (fd >= 0) ::close(fd);
+    fd_ = -1;
+    throw;
+  }
+}
+
+SerialDriver::~SerialDriver() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+bool SerialDriver::write_all(const std::uint8_t* p, std::size_t n, std::int64_t until_ns) noexcept {
+  std::size_t done = 0;
+  while (done < n) {
+    const ssize_t r = ::write(fd_, p + done, n - done);
+    if (r > 0) {
+      done += static_cast<std::size_t>(r);
+      continue;
+    }
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK) return false;
+    const std::int64_t remaining = until_ns - detail::monotonic_ns();
+    if (remaining <= 0) return false;
+    pollfd pf{fd_, POLLOUT, 0};
+    const timespec ts = detail::to_timespec(remaining);
+    if (::ppoll(&pf, 1, &ts, nullptr) <= 0) return false;
+  }
+  return true;
+}
+
+void SerialDriver::receive(std::int64_t stamp_ns) noexcept {
+  for (;;) {
+    if (rx_len_ == rx_.size()) {  // cannot happen with sane packets: drop and resynchronize
+      ++counters_.malformed;
+      rx_len_ = 0;
+    }
+    const ssize_t r = ::read(fd_, rx_.data() + rx_len_, rx_.size() - rx_len_);
+    if (r > 0) {
+      rx_len_ += static_cast<std::size_t>(r);
+      continue;
+    }
+    if (r < 0 && errno == EINTR) continue;
+    break;
+  }
+  parse(stamp_ns);
+}
+
+void SerialDriver::parse(std::int64_t stamp_ns) noexcept {
+  std::size_t pos = 0;
+  while (pos < rx_len_) {
+    std::size_t used = 0;
+    const dxl::DxlStatus s =
+        dxl::parse_packet(std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
+    if (s == dxl::DxlStatus::kNeedMore) break;
+    pos += used;
+    if (s == dxl::DxlStatus::kGarbage) {
+      if (!garbage_run_) ++counters_.malformed;  // one count per run of stray bytes
+      garbage_run_ = true;
+      continue;
+    }
+    garbage_run_ = false;
+    ++counters_.frames_rx;
+    if (s == dxl::DxlStatus::kOk) {
+      handle_status(pkt_, stamp_ns);
+    } else if (s == dxl::DxlStatus::kChecksum) {
+      ++counters_.checksum;
+      const int j = pkt_.id - 1;
+      if (j >= 0 && j < joints_) status_[static_cast<std::size_t>(j)] |= kStatusChecksum;
+    } else {
+      ++counters_.malformed;
+    }
+  }
+  if (pos > 0) {
+    std::memmove(rx_.data(), rx_.data() + pos, rx_len_ - pos);
+    rx_len_ -= pos;
+  }
+}
+
+void SerialDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns) noexcept {
+  const int j = p.id - 1;
+  if (p.instruction != dxl::kInstStatus || j < 0 || j >= joints_) {
+    ++counters_.malformed;
+    return;
+  }
+  const auto ju = static_cast<std::size_t>(j);
+  const std::uint8_t err = p.error & 0x7F;
+  if (err != 0) {  // the module could not process our packet: no valid data
+    if (err == dxl::kErrCrc) {
+      ++counters_.checksum;
+      status_[ju] |= kStatusChecksum;
+    } else {
+      ++counters_.malformed;
+    }
+    return;
+  }
+  if (p.param_count != dxl::kFeedbackBlockSize) {
+    ++counters_.malformed;
+    return;
+  }
+  dxl::FeedbackBlock fb{};
+  dxl::decode_feedback_block(p.params.data(), fb);
+  FrameAge age = classify_frame(rc_[ju], fb.echo, counter_, cycle_, 256);
+  if (age == FrameAge::kFresh && stamp_ns > deadline_ns_) {
+    rc_[ju].fresh = false;
+    age = FrameAge::kLate;
+  }
+  switch (age) {
+    case FrameAge::kFresh:
+      last_[ju] = fb;
+      ++fresh_count_;
+      if (stamp_ns > stamp_ns_) stamp_ns_ = stamp_ns;
+      break;
+    case FrameAge::kDuplicate:
+      ++counters_.duplicate;
+      status_[ju] |= kStatusStale;
+      break;
+    case FrameAge::kLate:
+      ++counters_.late;
+      status_[ju] |= kStatusStale;
+      break;
+    case FrameAge::kOutOfOrder:
+      ++counters_.out_of_order;
+      status_[ju] |= kStatusOutOfOrder;
+      break;
+  }
+}
+
+void SerialDriver::poll_overruns() noexcept {
+  if (!icount_ok_) return;
+  serial_icounter_struct ic{};
+  if (::ioctl(fd_, TIOCGICOUNT, &ic) != 0) {
+    icount_ok_ = false;  // not a UART (pty, some USB adapters)
+    return;
+  }
+  const auto total = static_cast<std::uint64_t>(ic.overrun) + static_cast<std::uint64_t>(ic.buf_overrun);
+  if (total > overruns_) counters_.rx_dropped += total - overruns_;
+  overruns_ = total;
+}
+
+IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, Feedback& out) {
+  ++cycle_;
+  counter_ = static_cast<std::uint8_t>(counter_ + 1);
+  for (int j = 0; j < joints_; ++j) {
+    begin_cycle(rc_[static_cast<std::size_t>(j)]);
+    status_[static_cast<std::size_t>(j)] = 0;
+  }
+  fresh_count_ = 0;
+  stamp_ns_ = 0;
+  deadline_ns_ = deadline_ns;
+  poll_overruns();
+
+  // 1. What is already here answers older cycles. A packet still incomplete is a short read.
+  receive(detail::monotonic_ns());
+  if (rx_len_ > 0) {
+    ++counters_.malformed;
+    rx_len_ = 0;
+    garbage_run_ = false;
+  }
+
+  // 2. SYNC (broadcast write of c to the sync-counter register) + Sync Read, in one write.
+  const std::uint8_t reg[3] = {static_cast<std::uint8_t>(dxl::kRegSyncCounter & 0xFF),
+                               static_cast<std::uint8_t>(dxl::kRegSyncCounter >> 8), counter_};
+  std::size_t n = 0;
+  dxl::build_instruction(dxl::kBroadcastId, dxl::kInstWrite, reg,
+                         std::span<std::uint8_t>(sync_tx_.data(), 16), n);
+  // Close the gap between the two packets (the Sync Read was built at offset 16).
+  std::memmove(sync_tx_.data() + n, sync_tx_.data() + 16, sync_read_len_);
+  const bool sent = write_all(sync_tx_.data(), n + sync_read_len_, deadline_ns);
+  std::memmove(sync_tx_.data() + 16, sync_tx_.data() + n, sync_read_len_);
+  if (sent) {
+    counters_.frames_tx += 2;
+  } else {
+    ++counters_.tx_dropped;
+  }
+
+  // 3. Gather the status packets until all are fresh or the deadline passes.
+  while (sent && fresh_count_ < joints_) {
+    const std::int64_t remaining = deadline_ns - detail::monotonic_ns();
+    if (remaining <= 0) break;
+    pollfd pf{fd_, POLLIN, 0};
+    const timespec ts = detail::to_timespec(remaining);
+    const int r = ::ppoll(&pf, 1, &ts, nullptr);
+    if (r < 0 && errno != EINTR) break;
+    if (r > 0) {
+      if (pf.revents & (POLLERR | POLLNVAL)) break;
+      receive(detail::monotonic_ns());
+      if ((pf.revents & POLLHUP) && !(pf.revents & POLLIN)) break;  // far end gone
+    }
+  }
+
+  out.joints = joints_;
+  out.seq = cycle_;
+  out.stamp_ns = fresh_count_ > 0 ? stamp_ns_ : detail::monotonic_ns();
+  for (int j = 0; j < joints_; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    std::uint16_t st = status_[ju];
+    if (!rc_[ju].fresh) {
+      st |= kStatusMissing;
+      ++counters_.missing;
+    }
+    const dxl::FeedbackBlock& fb = last_[ju];
+    out.beta[ju] = fb.beta;
+    out.beta_dot[ju] = fb.beta_dot;
+    out.deflection[ju] = fb.deflection;
+    out.status[ju] = static_cast<std::uint16_t>(st | fb.status);
+  }
+  if (!sent) return IoStatus::kBusError;
+  if (fresh_count_ == 0) return IoStatus::kTimeout;
+  if (fresh_count_ < joints_) return IoStatus::kPartial;
+  return IoStatus::kOk;
+}
+
+bool SerialDriver::send_commands(const Command* cmd, bool all_off, std::int64_t until_ns) noexcept {
+  for (int j = 0; j < joints_; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    dxl::CommandBlock b{};
+    b.counter = counter_;
+    b.torque_off = all_off || cmd == nullptr || cmd->torque_off || j >= cmd->joints;
+    if (!b.torque_off) {
+      b.tau = cmd->tau[ju];
+      b.beta_ref = cmd->beta_ref[ju];
+      b.beta_dot_ref = cmd->beta_dot_ref[ju];
+      b.kp = cmd->kp[ju];
+      b.kd = cmd->kd[ju];
+    }
+    dxl::encode_command_block(b, blocks_.data() + ju * dxl::kCommandBlockSize);
+  }
+  std::size_t n = 0;
+  const auto count = static_cast<std::size_t>(joints_);
+  if (dxl::build_sync_write(dxl::kRegCommand, dxl::kCommandBlockSize,
+                            std::span<const std::uint8_t>(ids_.data(), count),
+                            std::span<const std::uint8_t>(blocks_.data(), count * dxl::kCommandBlockSize),
+                            tx_, n) != dxl::DxlStatus::kOk)
+    return false;
+  if (!write_all(tx_.data(), n, until_ns)) {
+    ++counters_.tx_dropped;
+    return false;
+  }
+  ++counters_.frames_tx;
+  return true;
+}
+
+IoStatus SerialDriver::write(const Command& cmd) {
+  return send_commands(&cmd, false, detail::monotonic_ns() + write_timeout_ns_)
+             ? IoStatus::kOk
+             : IoStatus::kBusError;
+}
+
+void SerialDriver::safe_stop() {
+  send_commands(nullptr, true, detail::monotonic_ns() + 20'000'000);
+}
+
+}  // namespace pedalwave::drivers

@@ -142,7 +142,8 @@ void MonitorState::tick(std::int64_t now_ns) {
   for (TopicStats& s : topics_) {
     if (s.window_start_ns < 0) continue;
     const std::int64_t dt = now_ns - s.window_start_ns;
-    if (dt >= kRateWindowNs) {
+    // A provisional estimate after 0.2 s, so a short run (--once) shows a rate too.
+    if (dt >= kRateWindowNs || (s.rate_hz == 0.0 && dt >= kRateWindowNs / 5)) {
       s.rate_hz = static_cast<double>(s.window_count) * 1e9 / static_cast<double>(dt);
       s.window_count = 0;
       s.window_start_ns = now_ns;

@@ -37,6 +37,8 @@ struct TelemetrySubscriber::Impl {
   dds_entity_t waitset = 0;
   dds_entity_t w_cmd = 0;
   std::vector<ReaderSlot> readers;
+  std::size_t joint_reader_index = 0;   // readers[] slot of joint_state
+  std::size_t ack_reader_index = 0;     // readers[] slot of command_ack
   std::vector<TelemetryListener*> listeners;
 
   template <typename Msg, typename Decoded>
@@ -73,6 +75,11 @@ TelemetrySubscriber::TelemetrySubscriber(const SubscriberConfig& config)
   m.waitset = check(dds_create_waitset(m.participant.get()), "dds_create_waitset");
 
   using L = TelemetryListener;
+  // Description first: within one poll a listener sees it before the rest.
+  m.add_reader<pedalwave_msg_dds__RobotDescription_>(&pedalwave_msg_dds__RobotDescription__desc,
+                                                     kTopicDescription, QosClass::kDescription,
+                                                     &L::on_description);
+  m.joint_reader_index = m.readers.size();
   m.add_reader<pedalwave_msg_dds__JointState_>(&pedalwave_msg_dds__JointState__desc,
                                                kTopicJointState, QosClass::kState,
                                                &L::on_joint_state);
@@ -91,12 +98,10 @@ TelemetrySubscriber::TelemetrySubscriber(const SubscriberConfig& config)
   m.add_reader<pedalwave_msg_dds__FaultEvent_>(&pedalwave_msg_dds__FaultEvent__desc,
                                                kTopicFaultEvent, QosClass::kEvent,
                                                &L::on_fault_event);
-  m.add_reader<pedalwave_msg_dds__RobotDescription_>(&pedalwave_msg_dds__RobotDescription__desc,
-                                                     kTopicDescription, QosClass::kDescription,
-                                                     &L::on_description);
   m.add_reader<pedalwave_msg_dds__OperatorCommand_>(&pedalwave_msg_dds__OperatorCommand__desc,
                                                     kTopicCommand, QosClass::kCommand,
                                                     &L::on_command);
+  m.ack_reader_index = m.readers.size();
   m.add_reader<pedalwave_msg_dds__CommandAck_>(&pedalwave_msg_dds__CommandAck__desc,
                                                kTopicCommandAck, QosClass::kCommand,
                                                &L::on_command_ack);
@@ -159,8 +164,8 @@ bool TelemetrySubscriber::send_command(const runtime::OperatorCommand& c) {
 
 bool TelemetrySubscriber::wait_for_robot(std::chrono::nanoseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
-  // The command-ack reader is the last reader added; only a robot writes acks.
-  const dds_entity_t ack_reader = impl_->readers.back().reader;
+  // Only a robot writes acks.
+  const dds_entity_t ack_reader = impl_->readers[impl_->ack_reader_index].reader;
   for (;;) {
     dds_subscription_matched_status_t acks{};
     dds_publication_matched_status_t cmds{};
@@ -178,7 +183,8 @@ bool TelemetrySubscriber::wait_for_robot(std::chrono::nanoseconds timeout) {
 
 int TelemetrySubscriber::joint_state_writers() const {
   dds_subscription_matched_status_t st{};
-  if (dds_get_subscription_matched_status(impl_->readers.front().reader, &st) < 0) return 0;
+  if (dds_get_subscription_matched_status(
+          impl_->readers[impl_->joint_reader_index].reader, &st) < 0) return 0;
   return static_cast<int>(st.current_count);
 }
 

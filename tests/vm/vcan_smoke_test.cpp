@@ -116,12 +116,6 @@ Fd open_raw(bool fd_frames) {
   return s;
 }
 
-void enable_rx_timestamps(const Fd& s) {
-  const int flags = SOF_TIMESTAMPING_RX_SOFTWARE | SOF_TIMESTAMPING_SOFTWARE;
-  ASSERT_EQ(::setsockopt(s.get(), SOL_SOCKET, SO_TIMESTAMPING, &flags, sizeof flags), 0)
-      << std::strerror(errno);
-}
-
 std::int64_t realtime_ns() {
   timespec ts{};
   ::clock_gettime(CLOCK_REALTIME, &ts);
@@ -179,6 +173,27 @@ void send_fd(const Fd& s, canid_t id, std::uint8_t flags, const std::vector<std:
       << std::strerror(errno);
 }
 
+// Asks for software RX timestamps on rx and waits until the kernel applies them. The kernel
+// switches receive timestamping on asynchronously (net_enable_timestamp() defers the static-key
+// flip to a work item), so frames arriving right after the setsockopt may carry no timestamp:
+// probe frames from tx until one arrives stamped (bounded). Call before opening other receivers,
+// which would otherwise see the probes.
+void enable_rx_timestamps(const Fd& tx, const Fd& rx) {
+  const int flags = SOF_TIMESTAMPING_RX_SOFTWARE | SOF_TIMESTAMPING_SOFTWARE;
+  ASSERT_EQ(::setsockopt(rx.get(), SOL_SOCKET, SO_TIMESTAMPING, &flags, sizeof flags), 0)
+      << std::strerror(errno);
+  constexpr canid_t kProbe = 0x7FA;
+  for (int attempt = 0; attempt < 200; ++attempt) {
+    send_classic(tx, kProbe, {});
+    const auto r = receive(rx, std::chrono::milliseconds(1000));
+    ASSERT_TRUE(r.has_value()) << "timestamp probe frame not received";
+    ASSERT_EQ(r->frame.can_id, kProbe);
+    if (r->stamp_ns != 0) return;
+    ::usleep(10'000);
+  }
+  FAIL() << "kernel RX timestamps still missing after 200 probe frames (~2 s)";
+}
+
 std::vector<std::uint8_t> payload(std::size_t n, std::uint8_t seed) {
   std::vector<std::uint8_t> d(n);
   for (std::size_t i = 0; i < n; ++i) d[i] = static_cast<std::uint8_t>(seed + 37 * i);
@@ -195,7 +210,8 @@ TEST(VcanSocket, ClassicFramesArriveInOrderWithKernelTimestamps) {
   PEDALWAVE_REQUIRE_VCAN0();
   const Fd tx = open_raw(false);
   const Fd rx = open_raw(false);
-  enable_rx_timestamps(rx);
+  enable_rx_timestamps(tx, rx);
+  if (HasFatalFailure()) return;
 
   struct Sent {
     canid_t id;
@@ -230,8 +246,9 @@ TEST(VcanSocket, FdFramesRoundTripAndStayAwayFromClassicSockets) {
   PEDALWAVE_REQUIRE_VCAN0();
   const Fd tx = open_raw(true);
   const Fd rx_fd = open_raw(true);
+  enable_rx_timestamps(tx, rx_fd);
+  if (HasFatalFailure()) return;
   const Fd rx_classic = open_raw(false);
-  enable_rx_timestamps(rx_fd);
 
   // vcan0 must carry CAN FD: its MTU is CANFD_MTU.
   ifreq ifr{};
@@ -250,6 +267,7 @@ TEST(VcanSocket, FdFramesRoundTripAndStayAwayFromClassicSockets) {
   EXPECT_EQ(r->frame.can_id, 0x456u);
   EXPECT_EQ(r->frame.flags & (CANFD_BRS | CANFD_ESI), CANFD_BRS);
   EXPECT_EQ(data_of(*r), payload(64, 3));
+  ASSERT_NE(r->stamp_ns, 0) << "no SO_TIMESTAMPING software timestamp";
   EXPECT_GE(r->stamp_ns, t_before);
   EXPECT_LE(r->stamp_ns, realtime_ns());
 

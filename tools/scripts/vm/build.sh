@@ -161,7 +161,8 @@ mkdir -p /vmctl
 mount -t 9p -o trans=virtio,version=9p2000.L,msize=$msize vmctl /vmctl || fail "cannot mount the vmctl share"
 ip link set lo up
 for dev in vcan0 vcan1; do
-  ip link add dev $dev type vcan && ip link set $dev up || say "cannot create $dev"
+  # MTU 72 = CANFD_MTU: CAN FD capable (vcan's default, set explicitly all the same)
+  ip link add dev $dev type vcan && ip link set $dev mtu 72 up || say "cannot create $dev"
 done
 case " $(cat /proc/cmdline) " in *" vm.shell=1 "*) shell=1 ;; *) shell=0 ;; esac
 rwcache=none

@@ -143,8 +143,8 @@ read -r up _ </proc/uptime; read -r kver </proc/sys/kernel/osrelease
 echo "[vm] kernel $kver, job starts at $up s guest uptime; CAN interfaces:"
 for d in /sys/class/net/*; do
   read -r type <"$d/type"; [ "$type" = 280 ] || continue
-  read -r mtu <"$d/mtu"; read -r state <"$d/operstate"
-  echo "[vm]   ${d##*/} mtu $mtu $state"
+  read -r mtu <"$d/mtu"; read -r flags <"$d/flags"
+  echo "[vm]   ${d##*/} mtu $mtu $( (( flags & 1 )) && echo up || echo DOWN)"
 done
 EOS
   if [ -n "${VM_JOB:-}" ]; then
@@ -168,7 +168,7 @@ log "booting $(basename "$KERNEL") $KVER ($accel, $smp CPUs, ${mem} MiB, timeout
 t0=$(date +%s.%N)
 timeout --kill-after=10 "$timeout_s" qemu-system-x86_64 \
   -accel "$accel" -cpu "$cpu" -smp "$smp" -m "$mem" \
-  -machine "${VM_MACHINE:-q35}" -nodefaults -display none -no-reboot -monitor none "${console[@]}" \
+  -machine "${VM_MACHINE:-q35}" ${VM_BIOS:+-bios "$VM_BIOS"} -nodefaults -display none -no-reboot -monitor none "${console[@]}" \
   -kernel "$KERNEL" -initrd "$INITRD" -append "$append" \
   -virtfs "local,path=${ctl//,/,,},mount_tag=vmctl,security_model=none" \
   "${qemu_shares[@]}" 2>"$ctl/qemu.err"
@@ -195,7 +195,7 @@ boot_s=$(sed -n 's/.*boot_s=\([0-9.]*\).*/\1/p' "$ctl/times" 2>/dev/null)
 job_s=$(sed -n 's/.*job_s=\([0-9.]*\).*/\1/p' "$ctl/times" 2>/dev/null)
 if [ -n "$boot_s" ] && [ -n "$job_s" ]; then
   split=$(awk -v a="$boot_s" -v b="$job_s" -v w="$wall" \
-    'BEGIN{printf "boot %.1f s, tests %.1f s, poweroff+qemu %.1f s", a, b-a, w-b}')
+    'BEGIN{printf "kernel boot %.1f s, job %.1f s, qemu start+firmware+poweroff %.1f s", a, b-a, w-b}')
 else
   split="no guest times"
 fi

@@ -11,7 +11,8 @@
 # (Debian 12 is merged-/usr: /bin, /lib, /lib64, /sbin become the same symlinks as on the host).
 # Inside, the environment has PEDALWAVE_IN_VM=1 and PEDALWAVE_REQUIRE_VCAN=1 (tests that would
 # skip for a missing vcan0 must fail instead), plus these host variables when set: GTEST_*,
-# ASAN_OPTIONS, UBSAN_OPTIONS, TSAN_OPTIONS, LSAN_OPTIONS, CTEST_*.
+# ASAN_OPTIONS, UBSAN_OPTIONS, TSAN_OPTIONS, LSAN_OPTIONS, CTEST_* except CTEST_PARALLEL_LEVEL
+# (tests on vcan0 share one bus and see each other's frames: serial unless -j is passed).
 #
 # Environment:
 #   VM_DIR       where build.sh put the VM (default <repo>/build/vm)
@@ -132,6 +133,7 @@ LC_ALL=C sort -k3 -o "$ctl/shares" "$ctl/shares"
   echo 'set -u'
   while IFS='=' read -r name _; do
     case "$name" in
+      CTEST_PARALLEL_LEVEL) ;;  # tests on vcan0 share one bus: parallelism only if asked (-j)
       GTEST_*|ASAN_OPTIONS|UBSAN_OPTIONS|TSAN_OPTIONS|LSAN_OPTIONS|CTEST_*)
         printf 'export %s=%q\n' "$name" "${!name}" ;;
     esac
@@ -199,5 +201,5 @@ if [ -n "$boot_s" ] && [ -n "$job_s" ]; then
 else
   split="no guest times"
 fi
-log "ctest exit status $rc; wall ${wall} s ($split)"
+log "exit status $rc; wall ${wall} s ($split)"
 exit "$rc"

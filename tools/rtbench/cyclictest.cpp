@@ -88,7 +88,9 @@ CyclictestRun start_cyclictest(const std::string& exe, int priority, int interva
                                    "-i", std::to_string(interval_us),
                                    "-h", std::to_string(hist_us),
                                    "-D", std::to_string(seconds)};
-  if (priority > 0) args.push_back("--policy=fifo");
+  // cyclictest -p 0 alone still runs its measurement thread at SCHED_FIFO 2: ask for
+  // SCHED_OTHER explicitly so that both sides run under the same policy.
+  args.push_back(priority > 0 ? "--policy=fifo" : "--policy=other");
   if (cpu >= 0) args.push_back("-a" + std::to_string(cpu));
   if (mlock) args.push_back("-m");
   for (const auto& a : args) run.command += (run.command.empty() ? "" : " ") + a;

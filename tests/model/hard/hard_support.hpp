@@ -61,3 +61,84 @@ inline double ground_penetration(Plant& p, const VectorXd& q) {
 }
 
 }  // namespace pedalwave::model::hard
+
+// ---- Closed loop without the tools layer ---------------------------------------------------------
+// The gait controller (control layer, module-side PD) stepping a Simulation in lockstep, one control
+// period at a time: measure → update → the module's PD law set in the plant → advance one period.
+// The same composition as tools/simloop's ClosedLoop, kept here so the model tests do not depend on
+// the tools build.
+#include <span>
+
+#include "pedalwave/control/gait_controller.hpp"
+
+namespace pedalwave::model::hard {
+
+class GaitLoop {
+ public:
+  GaitLoop(const Scene& s, const IntegratorOptions& integ, double rate_hz = 1000.0)
+      : sim_(s, integ), ctl_(params(s, rate_hz)), state_(ctl_.make_state()), period_(1.0 / rate_hz) {
+    const int J = s.robot.N - 1;
+    meas_.beta = VectorXd::Zero(J);
+    meas_.beta_dot = VectorXd::Zero(J);
+    meas_.deflection = VectorXd::Zero(J);
+    ctl_.reset(state_, 0.0);
+  }
+
+  static control::GaitControllerParams params(const Scene& s, double rate_hz) {
+    control::GaitControllerParams c;
+    c.joints = s.robot.N - 1;
+    c.period = 1.0 / rate_hz;
+    c.gait.A_p = s.gait.A_p;
+    c.gait.omega = s.gait.omega;
+    c.admittance.Pi_n = {s.gait.eta};
+    c.actuator.K = {s.robot.joints == JointModel::kFlexible ? s.robot.stiffness(0) : 1e6};
+    c.actuator.reflected_inertia = {std::max(s.robot.n * s.robot.n * s.robot.I_r, 1e-12)};
+    return c;
+  }
+
+  StepStatus step() {
+    Plant& p = sim_.plant();
+    const double t = period_ * static_cast<double>(cycle_);
+    p.measure(sim_.q(), sim_.v(), meas_);
+    const auto J = static_cast<std::size_t>(meas_.beta.size());
+    const control::Measurement m{std::span<const double>(meas_.beta.data(), J),
+                                 std::span<const double>(meas_.beta_dot.data(), J),
+                                 std::span<const double>(meas_.deflection.data(), J)};
+    ctl_.update(t, period_, m, state_, out_);
+    ctl_.fill_command(out_, cmd_);
+    ActuatorInput& in = p.input();
+    for (std::size_t j = 0; j < J; ++j) {
+      const auto i = static_cast<Eigen::Index>(j);
+      in.tau(i) = cmd_.tau[j];
+      in.beta_ref(i) = cmd_.beta_ref[j];
+      in.beta_dot_ref(i) = cmd_.beta_dot_ref[j];
+      in.kp(i) = cmd_.kp[j];
+      in.kd(i) = cmd_.kd[j];
+    }
+    ++cycle_;
+    return sim_.advance_to(period_ * static_cast<double>(cycle_));
+  }
+
+  Simulation& sim() { return sim_; }
+  const control::ControlOutput& control() const { return out_; }
+  double t() const { return period_ * static_cast<double>(cycle_); }
+
+ private:
+  Simulation sim_;
+  control::GaitController ctl_;
+  control::GaitControllerState state_;
+  control::ControlOutput out_{};
+  drivers::Command cmd_{};
+  Measurement meas_;
+  double period_;
+  std::uint64_t cycle_ = 0;
+};
+
+// Whole-robot centre of mass [m].
+inline Vec2 com(Simulation& s) {
+  const Model& m = s.plant().model();
+  update_kinematics(m, s.plant().data(), s.q(), VectorXd());
+  return center_of_mass(m, s.plant().data(), s.q());
+}
+
+}  // namespace pedalwave::model::hard

@@ -69,9 +69,16 @@ resolve_kernel_pkg() {
   apt-cache depends linux-image-amd64 2>/dev/null |
     sed -n 's/^ *Depends: \(linux-image-[0-9][^ ]*-amd64\)$/\1/p' | head -n1
 }
+# apt-cache costs ~1.5 s of CPU: remember its answer until the apt lists change.
+lists_stamp() { stat -c '%Y %n' /var/lib/apt/lists /var/lib/apt/lists/*Packages* 2>/dev/null | sort -n | tail -n1; }
 kpkg=${VM_KERNEL_PKG:-}
+if [ -z "$kpkg" ] && [ -f "$VM_DIR/kernel-pkg" ] &&
+   [ "$(sed -n 2p "$VM_DIR/kernel-pkg")" = "$(lists_stamp)" ]; then
+  kpkg=$(sed -n 1p "$VM_DIR/kernel-pkg")
+fi
 if [ -z "$kpkg" ]; then
   kpkg=$(resolve_kernel_pkg || true)
+  [ -n "$kpkg" ] && printf '%s\n%s\n' "$kpkg" "$(lists_stamp)" >"$VM_DIR/kernel-pkg"
   if [ -z "$kpkg" ] && [ "${VM_NO_INSTALL:-0}" != 1 ]; then
     log "apt lists do not know linux-image-amd64; running apt-get update"
     $SUDO apt-get update -qq || true

@@ -189,8 +189,10 @@ void SocketCanDriver::drain(std::int64_t rt_minus_mono_ns) noexcept {
       if (c->cmsg_type == SCM_TIMESTAMPNS) {
         timespec ts{};
         std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-        stamp = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000LL + ts.tv_nsec -
-                rt_minus_mono_ns;
+        // A zero stamp means "not stamped" (RX timestamping is switched on asynchronously).
+        if (ts.tv_sec != 0 || ts.tv_nsec != 0)
+          stamp = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000LL + ts.tv_nsec -
+                  rt_minus_mono_ns;
       } else if (c->cmsg_type == SO_RXQ_OVFL) {
         std::uint32_t drops = 0;
         std::memcpy(&drops, CMSG_DATA(c), sizeof drops);

@@ -9,6 +9,7 @@
 // to the failure are written, the summary says why; 1 any other error (e.g. cannot write DIR).
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
@@ -28,6 +29,21 @@ int bad_input(const std::string& what) {
   return kExitBadInput;
 }
 
+// "a number > 0" with a short message (CLI::PositiveNumber prints the whole double range).
+const CLI::Validator kPositive(
+    [](std::string& text) -> std::string {
+      double v = 0.0;
+      try {
+        std::size_t used = 0;
+        v = std::stod(text, &used);
+        if (used != text.size()) return "'" + text + "': expected a number > 0";
+      } catch (const std::exception&) {
+        return "'" + text + "': expected a number > 0";
+      }
+      return v > 0 && std::isfinite(v) ? std::string{} : text + ": expected a number > 0";
+    },
+    "> 0", "positive");
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -46,21 +62,21 @@ int main(int argc, char** argv) {
   app.add_option("scene", scene_path, "scene file (YAML), e.g. config/scenes/flat_high_friction.yaml")
       ->required();
   app.add_option("--duration", duration, "simulated time [s] (default: the scene's)")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   app.add_option("--controller", controller, "gait: the runtime's gait + adaptive + PD controller; "
                  "none: passive robot (zero motor commands)")
       ->check(CLI::IsMember({"none", "gait"}))
       ->capture_default_str();
   app.add_option("--k_c", k_c, "adaptive admittance gain k_c (0 = open-loop gait)")
       ->capture_default_str();
-  app.add_option("--rate", rate, "control rate [Hz]")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--rate", rate, "control rate [Hz]")->check(kPositive)->capture_default_str();
   app.add_option("--integrator", integrator,
                  "euler | semi_implicit_euler | implicit_velocity | rk4 | dopri45 (default: the scene's)");
-  app.add_option("--h", h, "integrator step (initial step for dopri45) [s]")->check(CLI::PositiveNumber);
-  app.add_option("--rtol", rtol, "relative tolerance of dopri45")->check(CLI::PositiveNumber);
+  app.add_option("--h", h, "integrator step (initial step for dopri45) [s]")->check(kPositive);
+  app.add_option("--rtol", rtol, "relative tolerance of dopri45")->check(kPositive);
   app.add_option("--out", out, "output folder (default: sim_out/<scene name>)");
   app.add_option("--every", every, "CSV/plot sample period [s], a multiple of 1/rate")
-      ->check(CLI::PositiveNumber)
+      ->check(kPositive)
       ->capture_default_str();
   app.add_flag("--no-plots", no_plots, "write no figures");
   app.add_flag("--quiet", quiet, "no progress bar, no printed summary");

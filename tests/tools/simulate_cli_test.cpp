@@ -1,0 +1,236 @@
+// pedalwave_sim end to end: the built executable is run on shipped scenes into a temporary folder
+// and its outputs are checked against the model (tools/simulate/, the CLI contract in main.cpp).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "pedalwave/config/scene.hpp"
+#include "pedalwave/model/kinematics.hpp"
+#include "pedalwave/model/plant.hpp"
+#include "pedalwave/toolkit/csv.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kExe = PEDALWAVE_SIM_EXE;
+const std::string kScenes = std::string(PEDALWAVE_CONFIG_DIR) + "/scenes/";
+
+struct Result {
+  int code = -1;       // exit code
+  std::string stdout_text;
+  std::string stderr_text;
+};
+
+// Runs pedalwave_sim with `args` (already shell-quoted where needed), capturing both streams.
+Result run_sim(const std::string& args, const fs::path& dir) {
+  fs::create_directories(dir);
+  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
+  const std::string cmd = "'" + kExe + "' " + args + " >'" + out.string() + "' 2>'" + err.string() + "'";
+  const int status = std::system(cmd.c_str());
+  Result r;
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  auto slurp = [](const fs::path& p) {
+    std::ifstream f(p);
+    std::stringstream ss;
+    ss << f.rdbuf();
+    return ss.str();
+  };
+  r.stdout_text = slurp(out);
+  r.stderr_text = slurp(err);
+  return r;
+}
+
+class SimulateCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() /
+           ("pedalwave_sim_test_" + std::to_string(::getpid()) + "_" + info->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  fs::path dir_;
+};
+
+// The header the CLI promises (tools/simulate/sim_run.hpp), spelled out independently.
+std::vector<std::string> expected_header(int N, bool flexible) {
+  std::vector<std::string> q;
+  for (int j = 1; j < N; ++j) q.push_back("alpha_" + std::to_string(j));
+  q.insert(q.end(), {"theta_N", "p_x", "p_z"});
+  if (flexible)
+    for (int j = 1; j < N; ++j) q.push_back("beta_" + std::to_string(j));
+  std::vector<std::string> h{"t"};
+  h.insert(h.end(), q.begin(), q.end());
+  for (const auto& n : q) h.push_back(n + "_dot");
+  for (int k = 0; k <= 2 * N; ++k) h.push_back("fn_" + std::to_string(k));
+  for (int k = 0; k <= 2 * N; ++k) h.push_back("ft_" + std::to_string(k));
+  h.push_back("v_forward");
+  if (flexible)
+    for (int j = 1; j < N; ++j) h.push_back("tau_sea_" + std::to_string(j));
+  for (int j = 1; j < N; ++j) h.push_back("u_" + std::to_string(j));
+  h.insert(h.end(), {"com_x", "com_z", "head_x", "head_z"});
+  return h;
+}
+
+void expect_all_finite(const pedalwave::toolkit::CsvTable& t) {
+  for (std::size_t c = 0; c < t.cols(); ++c)
+    for (std::size_t i = 0; i < t.rows(); ++i)
+      ASSERT_TRUE(std::isfinite(t.column(c)[i])) << t.names()[c] << " row " << i;
+}
+
+TEST_F(SimulateCli, FreeFallComFollowsTheParabolaUnderTheGaitController) {
+  const Result r = run_sim("'" + kScenes + "free_fall.yaml' --duration 0.5 --every 0.01 --out '" +
+                               (dir_ / "out").string() + "' --no-plots",
+                           dir_);
+  ASSERT_EQ(r.code, 0) << r.stderr_text;
+  const auto t = pedalwave::toolkit::CsvTable::read(dir_ / "out" / "trajectory.csv");
+  EXPECT_EQ(t.names(), expected_header(6, true));
+  ASSERT_EQ(t.rows(), 51u);  // t = 0, 0.01, …, 0.5
+  expect_all_finite(t);
+
+  // The whole robot's COM from the scene's initial state, through the model, not the CSV.
+  const auto scene = pedalwave::config::load_scene(kScenes + "free_fall.yaml");
+  pedalwave::model::Plant plant(scene);
+  pedalwave::model::VectorXd q, v;
+  plant.initial_state(q, v);
+  const auto& m = plant.model();
+  pedalwave::model::Data d(m);
+  pedalwave::model::update_kinematics(m, d, q, v);
+  const pedalwave::model::Vec2 c0 = pedalwave::model::center_of_mass(m, d, q);
+  const pedalwave::model::Vec2 v0 = pedalwave::model::linear_momentum(m, d, v) / m.total_mass();
+  const double g = scene.robot.g;
+  ASSERT_GT(std::abs(v0.y()), 0.1);  // the scene throws it upwards: a real parabola
+  for (std::size_t i = 0; i < t.rows(); ++i) {
+    const double ti = t.column("t")[i];
+    EXPECT_NEAR(ti, 0.01 * static_cast<double>(i), 1e-12);
+    EXPECT_NEAR(t.column("com_z")[i], c0.y() + v0.y() * ti - 0.5 * g * ti * ti, 1e-6) << "t = " << ti;
+    EXPECT_NEAR(t.column("com_x")[i], c0.x() + v0.x() * ti, 1e-6) << "t = " << ti;
+    EXPECT_NEAR(t.column("v_forward")[i], v0.x(), 1e-6) << "t = " << ti;
+    // No ground: no contact force anywhere.
+    EXPECT_EQ(t.column("fn_0")[i], 0.0);
+  }
+  // The controller was running (the joints were commanded) and the body deformed.
+  double u_max = 0.0;
+  for (double u : t.column("u_3")) u_max = std::max(u_max, std::abs(u));
+  EXPECT_GT(u_max, 1e-3);
+  // The summary is printed and written, and names the run's facts.
+  EXPECT_NE(r.stdout_text.find("forward speed:"), std::string::npos) << r.stdout_text;
+  EXPECT_NE(r.stdout_text.find("integrator cost:"), std::string::npos);
+  EXPECT_NE(r.stdout_text.find("completed at t = 0.5 s"), std::string::npos) << r.stdout_text;
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "summary.txt"));
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "shapes.svg"));  // --no-plots
+}
+
+TEST_F(SimulateCli, PassiveFreeFallConservesEnergy) {
+  // No controller, no ground, RK4: the summary's initial and final energies agree.
+  const Result r = run_sim("'" + kScenes + "free_fall.yaml' --controller none --duration 0.2 --out '" +
+                               (dir_ / "out").string() + "' --no-plots --quiet",
+                           dir_);
+  ASSERT_EQ(r.code, 0) << r.stderr_text;
+  EXPECT_TRUE(r.stdout_text.empty());  // --quiet
+  const auto t = pedalwave::toolkit::CsvTable::read(dir_ / "out" / "trajectory.csv");
+  for (int j = 1; j <= 5; ++j)
+    for (double u : t.column("u_" + std::to_string(j))) ASSERT_EQ(u, 0.0);
+  std::ifstream f(dir_ / "out" / "summary.txt");
+  std::string line, energy;
+  while (std::getline(f, line))
+    if (line.rfind("energy", 0) == 0) energy = line;
+  double e0 = 0, e1 = 0;
+  ASSERT_EQ(std::sscanf(energy.c_str(), "energy [J]: initial %lf, final %lf", &e0, &e1), 2) << energy;
+  EXPECT_NEAR(e1, e0, 1e-3 * std::abs(e0)) << energy;  // summary prints 4 significant digits
+}
+
+TEST_F(SimulateCli, FlatSceneWritesCsvSummaryAndFigures) {
+  const Result r = run_sim("'" + kScenes + "flat_high_friction.yaml' --duration 0.4 --every 0.02 --out '" +
+                               (dir_ / "out").string() + "'",
+                           dir_);
+  ASSERT_EQ(r.code, 0) << r.stderr_text;
+  const auto t = pedalwave::toolkit::CsvTable::read(dir_ / "out" / "trajectory.csv");
+  EXPECT_EQ(t.names(), expected_header(6, true));
+  ASSERT_EQ(t.rows(), 21u);  // 0.4 / 0.02 + 1
+  expect_all_finite(t);
+  // The robot rests on the ground: contact forces carry (about) its weight once settled.
+  const std::size_t last = t.rows() - 1;
+  double fn = 0.0;
+  for (int k = 0; k <= 12; ++k) fn += t.column("fn_" + std::to_string(k))[last];
+  EXPECT_GT(fn, 0.5 * (6 * 0.1 + 5 * 0.02) * 9.81);
+  EXPECT_LT(fn, 3.0 * (6 * 0.1 + 5 * 0.02) * 9.81);
+  EXPECT_NE(r.stdout_text.find("max penetration:"), std::string::npos);
+  for (const char* f : {"shapes.svg", "paths.svg", "torques.svg", "speed.svg"})
+    EXPECT_TRUE(fs::exists(dir_ / "out" / f)) << f;
+  // 0.4 s is shorter than one gait cycle (2 s): no gait-cycle figure.
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "gait_cycle.svg"));
+}
+
+TEST_F(SimulateCli, RigidJointsHaveNoMotorColumns) {
+  const fs::path scene = dir_ / "rigid.yaml";
+  std::ofstream(scene) << "name: rigid\nrobot: {N: 4, joints: rigid}\n"
+                          "ground: {k: 350, d: 15, mu: 0.82}\ninitial: {pose: gait_start}\n"
+                          "integrator: {method: implicit_velocity, h: 5.0e-4}\n";
+  const Result r = run_sim("'" + scene.string() + "' --duration 0.1 --out '" + (dir_ / "out").string() +
+                               "' --no-plots --quiet",
+                           dir_);
+  ASSERT_EQ(r.code, 0) << r.stderr_text;
+  const auto t = pedalwave::toolkit::CsvTable::read(dir_ / "out" / "trajectory.csv");
+  EXPECT_EQ(t.names(), expected_header(4, false));
+  EXPECT_EQ(t.rows(), 11u);
+  expect_all_finite(t);
+}
+
+TEST_F(SimulateCli, MissingSceneFileIsBadInputNamingTheFile) {
+  const std::string missing = (dir_ / "no_such_scene.yaml").string();
+  const Result r = run_sim("'" + missing + "' --out '" + (dir_ / "out").string() + "'", dir_);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.stderr_text.find(missing), std::string::npos) << r.stderr_text;
+  EXPECT_EQ(std::count(r.stderr_text.begin(), r.stderr_text.end(), '\n'), 1) << r.stderr_text;
+  EXPECT_FALSE(fs::exists(dir_ / "out"));
+}
+
+TEST_F(SimulateCli, BadYamlIsBadInputNamingFileAndKey) {
+  const fs::path scene = dir_ / "bad.yaml";
+  std::ofstream(scene) << "name: bad\nground: {k: 350, mu: high}\n";
+  const Result r = run_sim("'" + scene.string() + "' --out '" + (dir_ / "out").string() + "'", dir_);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.stderr_text.find(scene.string()), std::string::npos) << r.stderr_text;
+  EXPECT_NE(r.stderr_text.find("ground.mu"), std::string::npos) << r.stderr_text;
+}
+
+TEST_F(SimulateCli, BadOptionValuesAreBadInput) {
+  const std::string scene = "'" + kScenes + "free_fall.yaml' --out '" + (dir_ / "out").string() + "' ";
+  for (const std::string opt :
+       {"--controller fancy", "--integrator leapfrog", "--h -1", "--rate abc",
+        "--every 0.0015" /* not a multiple of 1/rate */, "--duration 0", "--unknown-flag"}) {
+    const Result r = run_sim(scene + opt, dir_);
+    EXPECT_EQ(r.code, 2) << opt << ": " << r.stderr_text;
+    EXPECT_EQ(std::count(r.stderr_text.begin(), r.stderr_text.end(), '\n'), 1)
+        << opt << ": " << r.stderr_text;
+  }
+}
+
+TEST_F(SimulateCli, NonFiniteStateStopsTheRunWithExitCode3) {
+  // Explicit Euler with h = 10 ms against the module PD (K_D / n² I_r ≈ 4600 1/s) diverges.
+  const Result r = run_sim("'" + kScenes + "flat_high_friction.yaml' --integrator euler --h 0.01 "
+                           "--rate 100 --duration 5 --out '" + (dir_ / "out").string() + "' --no-plots",
+                           dir_);
+  EXPECT_EQ(r.code, 3) << r.stderr_text;
+  EXPECT_NE(r.stderr_text.find("NaN"), std::string::npos) << r.stderr_text;
+  EXPECT_NE(r.stdout_text.find("STOPPED"), std::string::npos) << r.stdout_text;
+  const auto t = pedalwave::toolkit::CsvTable::read(dir_ / "out" / "trajectory.csv");
+  EXPECT_GT(t.rows(), 1u);
+  EXPECT_LT(t.rows(), 501u);
+  expect_all_finite(t);  // only good states were written
+}
+
+}  // namespace

@@ -114,6 +114,42 @@ TEST(Figure, NanAndInfBreakALineIntoPieces) {
   EXPECT_EQ(svg.find("inf"), std::string::npos);
 }
 
+TEST(Figure, DenseSeriesAreReducedButKeepTheirExtremes) {
+  tk::Figure fig;
+  std::vector<double> t, y;
+  for (int i = 0; i < 200000; ++i) {
+    t.push_back(i * 1e-3);
+    y.push_back(i == 123456 ? 1.0 : (i == 7777 ? -1.0 : 0.0));  // one-sample spikes
+  }
+  fig.axes().line(t, y).ylim(-1.0, 1.0).xmargin(0.0);
+  const std::string svg = fig.to_svg();
+  const auto paths = elements(svg, "path", "class=\"series\"");
+  ASSERT_EQ(paths.size(), 1u);
+  const std::string d = attr(paths[0].tag, "d");
+  EXPECT_LT(svgcheck::count(d, "L"), 5000u);  // ≤ 4 points per pixel column
+  // both spikes reach the frame's top and bottom edges
+  const auto frame = elements(svg, "rect", "class=\"frame\"");
+  const double top = std::stod(attr(frame[0].tag, "y"));
+  const double bottom = top + std::stod(attr(frame[0].tag, "height"));
+  double ymin = 1e9, ymax = -1e9;
+  std::istringstream in(d);
+  for (std::string tok; in >> tok;) {
+    // tokens: "M<x>", "<y>L<x>", ..., "<y>": the number after each command letter is x
+    const std::size_t l = tok.find_first_of("ML");
+    if (l == std::string::npos || l == 0) {
+      if (l == std::string::npos) {
+        const double v = std::stod(tok);
+        ymin = std::min(ymin, v), ymax = std::max(ymax, v);
+      }
+      continue;
+    }
+    const double v = std::stod(tok.substr(0, l));
+    ymin = std::min(ymin, v), ymax = std::max(ymax, v);
+  }
+  EXPECT_NEAR(ymin, top, 0.01);
+  EXPECT_NEAR(ymax, bottom, 0.01);
+}
+
 TEST(Figure, NonPositiveValuesBreakLinesOnLogAxes) {
   tk::Figure fig;
   auto& ax = fig.axes();

@@ -422,6 +422,38 @@ std::string fmt_px(double v) {
   return buf;
 }
 
+struct Pt {
+  double x, y;  // [px]
+};
+
+// Pixel-column reduction of a polyline (the "M4" idea): consecutive points that fall in the same
+// 1-px column are replaced by the first, the lowest, the highest and the last of them, in their
+// original order. The rendered line is the same at this resolution; a 10^6-sample recording
+// becomes a few thousand points. Non-monotone x (paths) simply reduces less.
+std::vector<Pt> m4_reduce(const std::vector<Pt>& run) {
+  std::vector<Pt> out;
+  out.reserve(std::min<std::size_t>(run.size(), 4096));
+  std::size_t i = 0;
+  const std::size_t n = run.size();
+  while (i < n) {
+    const double col = std::floor(run[i].x);
+    std::size_t j = i, lo = i, hi = i;
+    while (j + 1 < n && std::floor(run[j + 1].x) == col) {
+      ++j;
+      if (run[j].y < run[lo].y) lo = j;
+      if (run[j].y > run[hi].y) hi = j;
+    }
+    std::array<std::size_t, 4> idx{i, std::min(lo, hi), std::max(lo, hi), j};
+    std::size_t prev = n;  // none
+    for (std::size_t k : idx) {
+      if (k != prev) out.push_back(run[k]);
+      prev = k;
+    }
+    i = j + 1;
+  }
+  return out;
+}
+
 // Appends "<cmd>x y" to a path's d attribute.
 void lineto(std::string& d, char cmd, double x, double y) {
   d.push_back(cmd);
@@ -777,35 +809,29 @@ struct FigureRenderer {
       const auto& s = ax.series_[si];
       if (!s.draw_line) continue;
       std::string d;
-      bool pen_down = false;
-      double lx = 0, ly = 0;        // last emitted point
-      double qx = 0, qy = 0;        // last skipped point (emitted at the end of a run)
-      bool pending = false;
+      std::vector<Pt> run;  // current run of valid points [px]
+      auto flush = [&] {
+        if (run.empty()) return;
+        const std::vector<Pt> pts = m4_reduce(run);
+        if (!d.empty()) d.push_back(' ');
+        lineto(d, 'M', pts[0].x, pts[0].y);
+        Pt last = pts[0];
+        for (std::size_t k = 1; k < pts.size(); ++k) {
+          // drop points closer than 0.3 px to the last drawn one, but keep the run's end
+          if (k + 1 < pts.size() && std::abs(pts[k].x - last.x) < 0.3 && std::abs(pts[k].y - last.y) < 0.3) continue;
+          lineto(d, 'L', pts[k].x, pts[k].y);
+          last = pts[k];
+        }
+        run.clear();
+      };
       for (std::size_t i = 0; i < s.x.size(); ++i) {
         if (!p.xa.valid(s.x[i]) || !p.ya.valid(s.y[i])) {
-          if (pending) lineto(d, 'L', qx, qy);
-          pen_down = pending = false;
+          flush();
           continue;
         }
-        const double X = px(p, s.x[i]), Y = py(p, s.y[i]);
-        if (!pen_down) {
-          if (!d.empty()) d.push_back(' ');
-          lineto(d, 'M', X, Y);
-          pen_down = true;
-          lx = X, ly = Y;
-          pending = false;
-          continue;
-        }
-        // drop points closer than 0.3 px to the last drawn one (dense recordings)
-        if (std::abs(X - lx) < 0.3 && std::abs(Y - ly) < 0.3) {
-          qx = X, qy = Y, pending = true;
-          continue;
-        }
-        lineto(d, 'L', X, Y);
-        lx = X, ly = Y;
-        pending = false;
+        run.push_back({px(p, s.x[i]), py(p, s.y[i])});
       }
-      if (pending) lineto(d, 'L', qx, qy);
+      flush();
       const auto& st = s.style;
       add(out, "<path class=\"series\" data-series=\"%zu\" fill=\"none\" stroke=\"%s\" stroke-width=\"%.3g\" "
                "stroke-opacity=\"%.3g\" stroke-linejoin=\"round\" stroke-linecap=\"round\"%s d=\"",
@@ -999,7 +1025,8 @@ struct FigureRenderer {
         legend_entries(ax.series_.data(), ax.series_.size(), ax.rects_.data(), ax.rects_.size());
     if (entries.empty()) return;
     constexpr double kRow = kLegendRow, kPad = kLegendPad, kSample = kLegendSample;
-    const auto [w, h] = legend_size(entries);
+    const auto size = legend_size(entries);
+    const double w = size.first, h = size.second;
     const Box& a = p.area;
     constexpr double kInset = 8.0;
     auto corner = [&](LegendPos pos) {

@@ -49,8 +49,8 @@ class Progress {
   void finish();
 
  private:
-  void print_tty(bool final_line);
-  void print_line(std::uint64_t done, int percent);
+  void print_tty(bool final_line);                    // caller holds print_mutex_
+  void print_line(std::uint64_t done, int percent);  // caller holds print_mutex_
 
   std::string label_;
   std::uint64_t total_;

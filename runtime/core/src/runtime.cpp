@@ -127,6 +127,7 @@ Runtime::Runtime(const RuntimeConfig& cfg, drivers::Driver& driver, Controller& 
   fb_.joints = joints_;
   cmd_.joints = joints_;
   cmd_.torque_off = true;  // "last command" the observer sees before the first write
+  clock_ = LoopClock(cfg_.clock, cfg_.lockstep_start_ns);  // event stamps before run()
   set_mode(Mode::kConfigured, "configured");
 }
 

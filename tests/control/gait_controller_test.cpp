@@ -277,8 +277,13 @@ TEST(GaitController, NonFiniteInputsAreContained) {
   const double pi0 = out.Pi[0];
   c.update(0.021, -1.0, m.view(5), s, out);
   EXPECT_TRUE(out.status & pc::kControlBadDt);
+  c.update(std::numeric_limits<double>::quiet_NaN(), 1e-3, m.view(5), s, out);
+  EXPECT_TRUE(out.status & pc::kControlBadDt);
+  EXPECT_TRUE(std::isfinite(out.alpha_d[2]));
+  EXPECT_TRUE(std::isfinite(out.u[2]));
   c.update(0.022, 1e-3, m.view(5), s, out);
   EXPECT_EQ(out.Pi[0], pi0);
+  EXPECT_NEAR(out.tau, 0.022, 1e-12);  // the phase is still the clock's
   // Spans too short: no torque, flagged, nothing propagated.
   c.update(0.023, 1e-3, m.view(3), s, out);
   EXPECT_TRUE(out.status & pc::kControlBadMeasurement);

@@ -139,7 +139,8 @@ std::uint32_t GaitController::update(double t, double dt, const Measurement& m,
   out.status = kControlOk;
   std::fill_n(out.flags.begin(), nz, std::uint8_t{0});
 
-  const bool dt_ok = std::isfinite(dt) && dt > 0.0;
+  const bool t_ok = std::isfinite(t);
+  const bool dt_ok = t_ok && std::isfinite(dt) && dt > 0.0;
   if (!dt_ok) out.status |= kControlBadDt;
   const bool sizes_ok = m.beta.size() >= nz && m.beta_dot.size() >= nz && m.deflection.size() >= nz;
   const bool have_ff = tau_ff.size() >= nz;
@@ -147,11 +148,13 @@ std::uint32_t GaitController::update(double t, double dt, const Measurement& m,
   // Gait time: runs with t, or stays at the held phase while frozen (t_offset absorbs the pause).
   const bool frozen = state.frozen;
   double tau = t - state.t_offset;
-  if (frozen) {
+  if (!t_ok) {
+    tau = state.tau_last;  // a non-finite time never reaches the phase
+  } else if (frozen) {
     tau = state.tau_last;
     state.t_offset = t - tau;
-    out.status |= kControlFrozen;
   }
+  if (frozen) out.status |= kControlFrozen;
   out.tau = tau;
 
   for (int j = 0; j < n; ++j) {

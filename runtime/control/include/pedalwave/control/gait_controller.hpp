@@ -22,7 +22,7 @@
 //
 // Non-finite inputs: a joint with non-finite β or β̇ gets u = 0 (kJointBadMotor); a non-finite
 // deflection holds that joint's η (kJointBadTorque); a bad dt holds the admittance and skips the
-// rate limit (kControlBadDt). Nothing in update allocates, locks, logs, throws or reads a clock.
+// rate limit, a non-finite t also holds the gait phase (kControlBadDt). Nothing in update allocates, locks, logs, throws or reads a clock.
 #pragma once
 
 #include <cstdint>

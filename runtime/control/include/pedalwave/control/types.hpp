@@ -31,7 +31,8 @@ enum ControlStatus : std::uint32_t {
   kControlSaturated = 1u << 0,       // some joint's torque limit (magnitude or rate) was active
   kControlPiBound = 1u << 1,         // some η_j hit its bound
   kControlBadMeasurement = 1u << 2,  // some measurement non-finite (see flags) or spans too short
-  kControlBadDt = 1u << 3,           // dt non-finite or ≤ 0: admittance held, no rate limit
+  kControlBadDt = 1u << 3,           // t non-finite (phase held), or dt non-finite or ≤ 0:
+                                     // admittance held, no rate limit
   kControlFrozen = 1u << 4,          // gait frozen (hold): α^d held, α̇^d = 0, Π held
 };
 

@@ -29,6 +29,14 @@ inline void sleep_until(std::int64_t t) {
   clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
 }
 
+// Waits (polling every ms) until pred() holds or timeout_ns passed; returns pred().
+template <class Pred>
+bool wait_for(Pred pred, std::int64_t timeout_ns) {
+  const std::int64_t give_up = now_ns() + timeout_ns;
+  while (!pred() && now_ns() < give_up) sleep_until(now_ns() + 1'000'000);
+  return pred();
+}
+
 // A smooth command: β_ref_j = 0.3 sin(2π·2 Hz·t + j), module PD kp = 2, kd = 0.05.
 inline void make_command(drivers::Command& c, int joints, std::int64_t t_ns) {
   c.joints = joints;

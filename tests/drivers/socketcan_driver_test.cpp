@@ -100,6 +100,10 @@ TEST_P(CanClean, NoFalseCountsAndPlantFollows) {
     Rig rig(joints, fd);
     log = run_cycles(*rig.drv, cycles, 2 * kMs, 100 * kMs);
     c = rig.drv->counters();
+    // The last cycle's commands are still on their way to the emulator thread.
+    pedalwave::test::wait_for(
+        [&] { return rig.emu->stats().commands >= static_cast<std::uint64_t>(cycles * joints); },
+        5000 * kMs);
     rig.stop = true;
     rig.th.join();
     rig.th = std::thread([] {});

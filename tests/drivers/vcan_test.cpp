@@ -123,6 +123,7 @@ TEST(Vcan, ClassicCycleOnRealSocketWithKernelTimestamps) {
                 c.bus_errors + c.tx_dropped + c.rx_dropped,
             0u);
   EXPECT_EQ(c.frames_rx, 800u);  // the receive filter lets only our feedback ids through
+  pedalwave::test::wait_for([&] { return rig.emu->stats().commands >= 800u; }, 10'000 * kMs);
   EXPECT_EQ(rig.emu->stats().commands, 800u);
 }
 
@@ -153,6 +154,7 @@ TEST(Vcan, FdFrameSetOnRealSocket) {
   for (auto s : log.io) ok += s == pd::IoStatus::kOk;
   EXPECT_EQ(ok, 200);
   EXPECT_EQ(rig.drv->counters().missing + rig.drv->counters().malformed, 0u);
+  pedalwave::test::wait_for([&] { return rig.emu->stats().commands >= 1000u; }, 10'000 * kMs);
   EXPECT_EQ(rig.emu->stats().commands, 1000u);
 }
 

@@ -40,6 +40,14 @@ skip() {
 t_start=$(date +%s.%N)
 if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; else SUDO=; fi
 
+mkdir -p "$VM_DIR" || die "cannot create $VM_DIR"
+# One build at a time per VM_DIR (several engineers or CI jobs may call this at once).
+exec 9>"$VM_DIR/.lock"
+if ! flock -n 9; then
+  log "another build.sh is working in $VM_DIR; waiting for it"
+  flock 9 || die "cannot lock $VM_DIR/.lock"
+fi
+
 # ---- 1. host packages ----------------------------------------------------------------------------
 pkgs=(qemu-system-x86 busybox-static can-utils kmod cpio xz-utils)
 missing=()

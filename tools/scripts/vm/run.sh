@@ -48,7 +48,7 @@ skip() {
 
 [ $# -ge 1 ] || die "usage: $0 BUILD_DIR [CTEST_ARGS...]"
 [ -d "$1" ] || die "build folder '$1' does not exist"
-build_dir=$(cd "$1" && pwd -P)
+build_dir=$(cd "$1" && pwd)
 shift
 [ -f "$build_dir/CTestTestfile.cmake" ] || die "'$build_dir' is not a configured build folder (no CTestTestfile.cmake)"
 

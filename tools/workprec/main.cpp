@@ -1,0 +1,462 @@
+// pedalwave_workprec — what accuracy costs in time (model-spec.md §10, DESIGN.md "Simulation").
+//
+// Work-precision study (default): for each scene a dopri45 reference (tight rtol, its own error
+// estimated against rtol × 10), then every integrator over a sweep of steps (tolerances for
+// dopri45), the walking scenes in closed loop (gait controller at 1 kHz, module-side PD), free fall
+// open loop. Errors: COM position (final, max over time), joint angles (max), sampled every control
+// period; cost: wall and thread CPU time (median of repeats), derivative evaluations. Writes a
+// Markdown table and log-log figures per scene, all points as CSV, and a summary naming the
+// cheapest run within 1 mm max COM error against explicit Euler at 1e-4 s (the paper's choice).
+//
+// Fidelity study (--fidelity): flexible vs rigid joints, Coulomb vs regularized (v_s = 1e-4, 1e-3,
+// 1e-2) vs tanh vs stick–slip friction on the flat and stair scenes: forward speed and cost.
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include "pedalwave/config/scene.hpp"
+#include "pedalwave/model/stability.hpp"
+#include "pedalwave/toolkit/csv.hpp"
+#include "pedalwave/toolkit/plots.hpp"
+#include "pedalwave/toolkit/progress.hpp"
+#include "pedalwave/toolkit/table.hpp"
+#include "study.hpp"
+
+namespace fs = std::filesystem;
+namespace model = pedalwave::model;
+namespace tk = pedalwave::toolkit;
+using namespace pedalwave::workprec;
+
+namespace {
+
+const std::vector<model::Method> kMethods = {
+    model::Method::kExplicitEuler, model::Method::kSemiImplicitEuler,
+    model::Method::kImplicitVelocity, model::Method::kRK4, model::Method::kDormandPrince45};
+
+struct Job {
+  int scene = 0;        // index into the scenes
+  RunSpec spec;
+  bool record = true;
+  int repeats = 1;      // more repeats when a run is short
+  double est_cost = 0;  // for ordering: longest first
+  RunResult result;
+};
+
+// Runs jobs on `threads` threads, longest first, with a progress bar.
+void run_jobs(std::vector<Job*>& jobs, int threads, const std::string& label, bool quiet) {
+  std::sort(jobs.begin(), jobs.end(), [](const Job* a, const Job* b) { return a->est_cost > b->est_cost; });
+  tk::Progress::Options po;
+  if (quiet) po.style = tk::Progress::Style::silent;
+  tk::Progress progress(label, jobs.size(), po);
+  std::atomic<size_t> next{0};
+  auto worker = [&] {
+    for (size_t i; (i = next.fetch_add(1)) < jobs.size();) {
+      Job& j = *jobs[i];
+      j.result = run_once(j.spec, j.record);
+      // Short runs: repeat and take the median time (the first run's trajectory is kept).
+      if (j.result.status == RunStatus::kOk && j.repeats > 1 && j.result.cpu_s < 1.0) {
+        std::vector<double> wall{j.result.wall_s}, cpu{j.result.cpu_s};
+        for (int r = 1; r < j.repeats; ++r) {
+          const RunResult x = run_once(j.spec, false);
+          wall.push_back(x.wall_s);
+          cpu.push_back(x.cpu_s);
+        }
+        std::sort(wall.begin(), wall.end());
+        std::sort(cpu.begin(), cpu.end());
+        j.result.wall_s = wall[wall.size() / 2];
+        j.result.cpu_s = cpu[cpu.size() / 2];
+      }
+      progress.advance();
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
+  for (auto& t : pool) t.join();
+  progress.finish();
+}
+
+std::string num(double v, int sig = 3) { return tk::Table::num(v, sig); }
+
+std::string method_label(model::Method m) {
+  switch (m) {
+    case model::Method::kExplicitEuler: return "explicit Euler";
+    case model::Method::kSemiImplicitEuler: return "semi-implicit Euler";
+    case model::Method::kImplicitVelocity: return "implicit velocity";
+    case model::Method::kRK4: return "RK4";
+    case model::Method::kDormandPrince45: return "dopri45";
+  }
+  return "?";
+}
+
+std::string setting(const model::IntegratorOptions& o) {
+  return model::is_adaptive(o.method) ? "rtol " + num(o.rtol, 2) : "h " + num(o.h, 2);
+}
+
+// Estimated cost (evaluations) of a run, to start the long ones first.
+double estimate(const RunSpec& s) {
+  const double stages = s.integ.method == model::Method::kRK4            ? 4
+                        : s.integ.method == model::Method::kImplicitVelocity ? 3
+                                                                              : 1;
+  if (model::is_adaptive(s.integ.method)) return s.duration / 2e-4 * 7 * (1 - std::log10(s.integ.rtol) / 10);
+  return s.duration / s.integ.h * stages;
+}
+
+model::IntegratorOptions dopri(double rtol) {
+  return {.method = model::Method::kDormandPrince45, .h = 1e-5, .rtol = rtol, .atol = rtol * 1e-2,
+          .h_min = 1e-15, .h_max = 1e-3};
+}
+
+struct Options {
+  std::vector<std::string> scenes;
+  double duration = 10.0;
+  std::string out = "workprec_out";
+  int jobs = 2;
+  int repeats = 3;
+  double ref_rtol = 1e-8;
+  bool quick = false;
+  bool fidelity = false;
+  bool quiet = false;
+};
+
+// ---- work-precision -----------------------------------------------------------------------------
+
+int work_precision(const Options& opt) {
+  std::vector<model::Scene> scenes;
+  for (const auto& p : opt.scenes) scenes.push_back(pedalwave::config::load_scene(p));
+  const int S = static_cast<int>(scenes.size());
+  auto base = [&](int s) {
+    RunSpec r;
+    r.scene = scenes[static_cast<size_t>(s)];
+    r.closed_loop = r.scene.ground_on;  // free fall (no ground) runs open loop
+    // Open loop has no control period: sample every 2 ms so that h = 2e-3 is a real step.
+    if (!r.closed_loop) r.rate_hz = 500.0;
+    r.duration = opt.duration;
+    return r;
+  };
+
+  // References: rtol and rtol/10 (the latter is the reference; their difference bounds the error).
+  std::vector<Job> refs(static_cast<size_t>(2 * S));
+  std::vector<Job*> ptrs;
+  for (int s = 0; s < S; ++s)
+    for (int k = 0; k < 2; ++k) {
+      Job& j = refs[static_cast<size_t>(2 * s + k)];
+      j.scene = s;
+      j.spec = base(s);
+      j.spec.integ = dopri(k == 0 ? opt.ref_rtol : opt.ref_rtol / 10);
+      j.est_cost = estimate(j.spec) * 3;
+      ptrs.push_back(&j);
+    }
+  run_jobs(ptrs, opt.jobs, "references", opt.quiet);
+  for (const Job& j : refs)
+    if (j.result.status != RunStatus::kOk) {
+      std::cerr << "reference for " << scenes[static_cast<size_t>(j.scene)].name << " failed: " << j.result.why
+                << " at t = " << j.result.t_fail << " s\n";
+      return 3;
+    }
+
+  // The sweep.
+  const std::vector<double> fixed_h = opt.quick ? std::vector<double>{1e-4, 5e-4, 1e-3}
+                                                : std::vector<double>{1e-5, 2e-5, 5e-5, 1e-4, 2e-4, 5e-4, 1e-3};
+  const std::vector<double> rk4_h = opt.quick ? std::vector<double>{1e-4, 5e-4}
+                                              : std::vector<double>{5e-5, 1e-4, 2e-4, 5e-4, 1e-3};
+  const std::vector<double> rtols = opt.quick ? std::vector<double>{1e-3, 1e-6}
+                                              : std::vector<double>{1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9};
+  std::vector<Job> runs;
+  for (int s = 0; s < S; ++s) {
+    const RunSpec b = base(s);
+    for (model::Method m : kMethods) {
+      std::vector<double> hs = m == model::Method::kRK4 ? rk4_h : fixed_h;
+      if (!b.closed_loop && m != model::Method::kDormandPrince45) hs.push_back(2e-3);  // > period
+      if (m == model::Method::kDormandPrince45) {
+        for (double rt : rtols) {
+          Job j;
+          j.scene = s;
+          j.spec = b;
+          j.spec.integ = dopri(rt);
+          runs.push_back(j);
+        }
+        continue;
+      }
+      for (double h : hs) {
+        Job j;
+        j.scene = s;
+        j.spec = b;
+        j.spec.integ = {.method = m, .h = h};
+        runs.push_back(j);
+      }
+    }
+  }
+  ptrs.clear();
+  for (Job& j : runs) {
+    j.repeats = opt.repeats;
+    j.est_cost = estimate(j.spec);
+    ptrs.push_back(&j);
+  }
+  run_jobs(ptrs, opt.jobs, "work-precision runs", opt.quiet);
+
+  // Results.
+  fs::create_directories(opt.out);
+  tk::CsvWriter csv(fs::path(opt.out) / "work_precision.csv",
+                    {"scene", "method", "h", "rtol", "status", "wall_s", "cpu_s", "evaluations",
+                     "steps", "rejected", "com_err_final_m", "com_err_max_m", "alpha_err_max_rad",
+                     "t_reached_s"});
+  {
+    std::ostringstream c;
+    c << "pedalwave_workprec: duration " << opt.duration << " s, reference dopri45 rtol "
+      << opt.ref_rtol / 10 << "\nscene ids:";
+    for (int s = 0; s < S; ++s) c << ' ' << s << '=' << scenes[static_cast<size_t>(s)].name;
+    c << "\nmethod ids:";
+    for (model::Method m : kMethods) c << ' ' << static_cast<int>(m) << '=' << model::to_string(m);
+    c << "\nstatus: 0 ok, 1 unstable (NaN or blow-up), 2 failed; errors are NaN unless ok";
+    csv.comment(c.str());
+  }
+  std::ostringstream summary;
+  summary << "# Work-precision study\n\n"
+          << "Duration " << opt.duration << " s per run; errors against a dopri45 reference (rtol "
+          << num(opt.ref_rtol / 10, 2) << "), sampled every control period (1 ms; open loop every "
+          << "2 ms, so that h = 2e-3 is a real step). Time is the "
+          << "run's thread CPU time (median of " << opt.repeats
+          << " repeats for runs under 1 s); wall time is in the CSV.\n\n";
+  tk::Table best({"scene", "loop", "ref. error (COM, α)", "cheapest within 1 mm (max COM)", "CPU [s]",
+                  "evals", "Euler 1e-4: CPU [s]", "evals", "× cheaper (CPU, evals)"});
+
+  for (int s = 0; s < S; ++s) {
+    const model::Scene& sc = scenes[static_cast<size_t>(s)];
+    const Trajectory& ref = refs[static_cast<size_t>(2 * s + 1)].result.traj;
+    const Errors ref_err = compare(refs[static_cast<size_t>(2 * s)].result.traj, ref);
+    const bool closed = sc.ground_on;
+    const model::ControlGains gains = closed ? model::ControlGains{30, 15} : model::ControlGains{0, 0};
+    const model::StabilityReport pred = model::predict_stability(sc, gains);
+
+    tk::Table t({"method", "setting", "status", "CPU [s]", "wall [s]", "evaluations",
+                 "COM err final [m]", "COM err max [m]", "α err max [rad]"});
+    std::map<model::Method, tk::WorkPrecisionSeries> series_com, series_alpha;
+    const Job* cheapest = nullptr;
+    const Job* euler4 = nullptr;
+    for (const Job& j : runs) {
+      if (j.scene != s) continue;
+      const RunResult& r = j.result;
+      const bool ok = r.status == RunStatus::kOk;
+      Errors e{NAN, NAN, NAN};
+      if (ok) e = compare(r.traj, ref);
+      const model::Method m = j.spec.integ.method;
+      csv.row({static_cast<double>(s), static_cast<double>(static_cast<int>(m)), j.spec.integ.h,
+               model::is_adaptive(m) ? j.spec.integ.rtol : NAN, static_cast<double>(static_cast<int>(r.status)),
+               r.wall_s, r.cpu_s, static_cast<double>(r.evaluations), static_cast<double>(r.steps),
+               static_cast<double>(r.rejected), e.com_final, e.com_max, e.alpha_max, r.t_fail});
+      t.add_row({method_label(m), setting(j.spec.integ),
+                 ok ? "ok" : std::string(to_string(r.status)) + " at " + num(r.t_fail, 3) + " s",
+                 num(r.cpu_s), num(r.wall_s), std::to_string(r.evaluations), ok ? num(e.com_final) : "—",
+                 ok ? num(e.com_max) : "—", ok ? num(e.alpha_max) : "—"});
+      auto& sc_com = series_com[m];
+      auto& sc_alpha = series_alpha[m];
+      sc_com.label = sc_alpha.label = method_label(m);
+      sc_com.cost.push_back(ok ? r.cpu_s : NAN);
+      sc_com.error.push_back(ok ? e.com_max : NAN);
+      sc_alpha.cost.push_back(ok ? r.cpu_s : NAN);
+      sc_alpha.error.push_back(ok ? e.alpha_max : NAN);
+      if (ok && e.com_max <= 1e-3 && (!cheapest || r.cpu_s < cheapest->result.cpu_s)) cheapest = &j;
+      if (m == model::Method::kExplicitEuler && std::abs(j.spec.integ.h - 1e-4) < 1e-12) euler4 = &j;
+    }
+
+    // Per-scene Markdown.
+    std::ostringstream md;
+    md << "## " << sc.name << (closed ? " (closed loop)" : " (open loop)") << "\n\n"
+       << "Reference: dopri45 rtol " << num(opt.ref_rtol / 10, 2) << " ("
+       << refs[static_cast<size_t>(2 * s + 1)].result.evaluations << " evaluations); against rtol "
+       << num(opt.ref_rtol, 2) << " it differs by " << num(ref_err.com_max) << " m (COM, max) and "
+       << num(ref_err.alpha_max) << " rad (α, max) — an upper bound on the reference's own error.\n\n"
+       << "Predicted stability limits (model/stability.hpp, K_p = " << gains.K_p << ", K_D = " << gains.K_D
+       << "): explicit Euler " << num(pred.euler.h_max) << " s (" << model::to_string(pred.euler.dominant)
+       << "), semi-implicit Euler " << num(pred.semi_implicit.h_max) << " s ("
+       << model::to_string(pred.semi_implicit.dominant) << "), RK4 " << num(pred.rk4.h_max) << " s ("
+       << model::to_string(pred.rk4.dominant) << "), dopri45 ≈ " << num(pred.dopri.h_max) << " s.\n\n"
+       << t.to_markdown() << "\n";
+    if (cheapest) {
+      md << "Cheapest within 1 mm max COM error: **" << method_label(cheapest->spec.integ.method) << ", "
+         << setting(cheapest->spec.integ) << "** (" << num(cheapest->result.cpu_s) << " s CPU, "
+         << cheapest->result.evaluations << " evaluations)";
+      if (euler4 && euler4->result.status == RunStatus::kOk)
+        md << ": " << num(euler4->result.cpu_s / cheapest->result.cpu_s, 2) << "× less CPU time and "
+           << num(static_cast<double>(euler4->result.evaluations) / static_cast<double>(cheapest->result.evaluations), 2)
+           << "× fewer evaluations than explicit Euler at 1e-4 s";
+      else if (euler4)
+        md << "; explicit Euler at 1e-4 s is unstable here";
+      md << ".\n\n";
+    } else {
+      md << "No run met 1 mm max COM error.\n\n";
+    }
+    std::ofstream(fs::path(opt.out) / (sc.name + ".md")) << md.str();
+    summary << md.str();
+
+    // Figures.
+    for (int which = 0; which < 2; ++which) {
+      std::vector<tk::WorkPrecisionSeries> ser;
+      for (auto& [m, x] : which == 0 ? series_com : series_alpha) ser.push_back(x);
+      tk::WorkPrecisionOptions wo;
+      wo.title = sc.name + (which == 0 ? ": max COM error vs CPU time" : ": max joint-angle error vs CPU time") +
+                 " (unstable runs omitted)";
+      wo.xlabel = "CPU time of the run [s] (" + num(opt.duration, 3) + " s simulated)";
+      wo.ylabel = which == 0 ? "max COM position error [m]" : "max joint angle error [rad]";
+      if (which == 0) {
+        wo.tolerance = 1e-3;
+        wo.tolerance_label = "1 mm";
+      }
+      tk::Figure fig = tk::work_precision_plot(ser, wo);
+      const tk::SaveResult sr =
+          fig.save(fs::path(opt.out) / (sc.name + (which == 0 ? "_com.svg" : "_alpha.svg")));
+      if (!opt.quiet) std::cerr << sr.note << '\n';
+    }
+
+    // Summary row.
+    std::string ch = "none", cc = "—", ce = "—", ec = "—", ee = "—", ratio = "—";
+    if (cheapest) {
+      ch = method_label(cheapest->spec.integ.method) + ", " + setting(cheapest->spec.integ);
+      cc = num(cheapest->result.cpu_s);
+      ce = std::to_string(cheapest->result.evaluations);
+    }
+    if (euler4) {
+      if (euler4->result.status == RunStatus::kOk) {
+        ec = num(euler4->result.cpu_s);
+        ee = std::to_string(euler4->result.evaluations);
+        if (cheapest)
+          ratio = num(euler4->result.cpu_s / cheapest->result.cpu_s, 2) + ", " +
+                  num(static_cast<double>(euler4->result.evaluations) /
+                          static_cast<double>(cheapest->result.evaluations), 2);
+      } else {
+        ec = "unstable";
+      }
+    }
+    best.add_row({sc.name, closed ? "closed" : "open", num(ref_err.com_max, 2) + " m, " + num(ref_err.alpha_max, 2) + " rad",
+                  ch, cc, ce, ec, ee, ratio});
+  }
+  csv.close();
+  summary << "## Summary\n\n" << best.to_markdown();
+  std::ofstream(fs::path(opt.out) / "summary.md") << summary.str();
+  if (!opt.quiet) std::cout << best.to_text();
+  std::cout << "wrote " << (fs::path(opt.out) / "summary.md").string() << ", work_precision.csv and figures\n";
+  return 0;
+}
+
+// ---- fidelity -----------------------------------------------------------------------------------
+
+int fidelity(const Options& opt) {
+  struct Variant {
+    std::string name;
+    std::function<void(model::Scene&)> apply;
+  };
+  const std::vector<Variant> variants = {
+      {"flexible, regularized v_s = 1e-3 (shipped)", [](model::Scene&) {}},
+      {"rigid joints (exact limit)", [](model::Scene& s) { s.robot.joints = model::JointModel::kRigid; }},
+      {"Coulomb (exact sign)", [](model::Scene& s) { s.ground.law = model::FrictionLaw::kCoulomb; }},
+      {"regularized v_s = 1e-4", [](model::Scene& s) { s.ground.v_s = 1e-4; }},
+      {"regularized v_s = 1e-2", [](model::Scene& s) { s.ground.v_s = 1e-2; }},
+      {"tanh v_s = 1e-3", [](model::Scene& s) { s.ground.law = model::FrictionLaw::kTanh; }},
+      {"stick-slip k_t = 2000 N/m", [](model::Scene& s) { s.ground.law = model::FrictionLaw::kStickSlip; }},
+  };
+  std::vector<model::Scene> scenes;
+  for (const auto& p : opt.scenes) scenes.push_back(pedalwave::config::load_scene(p));
+  const std::vector<model::IntegratorOptions> integs = {
+      {.method = model::Method::kImplicitVelocity, .h = 1e-4}, dopri(1e-6)};
+  std::vector<Job> jobs;
+  for (size_t s = 0; s < scenes.size(); ++s)
+    for (size_t v = 0; v < variants.size(); ++v)
+      for (const auto& in : integs) {
+        Job j;
+        j.scene = static_cast<int>(s * 100 + v);
+        j.spec.scene = scenes[s];
+        variants[v].apply(j.spec.scene);
+        j.spec.closed_loop = true;
+        j.spec.duration = opt.duration;
+        j.spec.integ = in;
+        j.est_cost = estimate(j.spec);
+        jobs.push_back(j);
+      }
+  std::vector<Job*> ptrs;
+  for (Job& j : jobs) ptrs.push_back(&j);
+  run_jobs(ptrs, opt.jobs, "fidelity runs", opt.quiet);
+
+  fs::create_directories(opt.out);
+  tk::CsvWriter csv(fs::path(opt.out) / "fidelity.csv",
+                    {"scene", "variant", "method", "status", "speed_cm_s", "cpu_s", "wall_s", "evaluations", "steps"});
+  std::ostringstream md;
+  md << "# Model fidelity: forward speed and cost\n\nClosed loop (gait at 1 kHz, module-side PD, k_c = 0), "
+     << opt.duration << " s. Speed = (x_COM(T) − x_COM(0)) / T, +X is toward the head. Each variant is "
+     << "run with implicit_velocity at h = 1e-4 s (the paper's step) and with dopri45 at rtol 1e-6 (its "
+     << "evaluations show how stiff the variant is).\n\n";
+  for (size_t s = 0; s < scenes.size(); ++s) {
+    tk::Table t({"variant", "speed [cm/s] (implicit 1e-4)", "speed [cm/s] (dopri45 1e-6)", "CPU [s] implicit",
+                 "evals implicit", "CPU [s] dopri45", "evals dopri45"});
+    for (size_t v = 0; v < variants.size(); ++v) {
+      std::vector<std::string> row{variants[v].name};
+      std::vector<std::string> cost;
+      for (size_t k = 0; k < integs.size(); ++k) {
+        const Job& j = jobs[(s * variants.size() + v) * integs.size() + k];
+        const RunResult& r = j.result;
+        const bool ok = r.status == RunStatus::kOk && !r.traj.com_x.empty();
+        const double speed = ok ? 100.0 * (r.traj.com_x.back() - r.traj.com_x.front()) / opt.duration : NAN;
+        row.push_back(ok ? num(speed, 3) : std::string(to_string(r.status)) + " (" + r.why + ")");
+        cost.push_back(num(r.cpu_s));
+        cost.push_back(std::to_string(r.evaluations));
+        csv.row({static_cast<double>(s), static_cast<double>(v), static_cast<double>(static_cast<int>(j.spec.integ.method)),
+                 static_cast<double>(static_cast<int>(r.status)), speed, r.cpu_s, r.wall_s,
+                 static_cast<double>(r.evaluations), static_cast<double>(r.steps)});
+      }
+      row.push_back(cost[0]);
+      row.push_back(cost[1]);
+      row.push_back(cost[2]);
+      row.push_back(cost[3]);
+      t.add_row(row);
+    }
+    md << "## " << scenes[s].name << "\n\n" << t.to_markdown() << "\n";
+  }
+  csv.close();
+  std::ofstream(fs::path(opt.out) / "fidelity.md") << md.str();
+  if (!opt.quiet) std::cout << md.str();
+  std::cout << "wrote " << (fs::path(opt.out) / "fidelity.md").string() << "\n";
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"pedalwave_workprec: what accuracy costs in time — integrators against a tight "
+               "reference on the shipped scenes (or, with --fidelity, model variants)"};
+  Options opt;
+  const std::string dir = PEDALWAVE_SCENES_DIR;
+  app.add_option("scenes", opt.scenes, "scene files (default: the shipped scenes; --fidelity: flat_high_friction and stair)");
+  app.add_option("--duration", opt.duration, "simulated time per run [s]")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--out", opt.out, "output folder")->capture_default_str();
+  app.add_option("--jobs", opt.jobs, "parallel runs (threads)")->check(CLI::Range(1, 64))->capture_default_str();
+  app.add_option("--repeats", opt.repeats, "timing repeats for runs under 1 s CPU (median)")->check(CLI::Range(1, 20))->capture_default_str();
+  app.add_option("--ref-rtol", opt.ref_rtol, "reference check tolerance; the reference itself uses a tenth of it")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_flag("--quick", opt.quick, "a few points per method (smoke test)");
+  app.add_flag("--fidelity", opt.fidelity, "model-fidelity study instead of the work-precision study");
+  app.add_flag("--quiet", opt.quiet, "no progress bar");
+  CLI11_PARSE(app, argc, argv);
+  if (opt.scenes.empty()) {
+    if (opt.fidelity)
+      opt.scenes = {dir + "/flat_high_friction.yaml", dir + "/stair.yaml"};
+    else
+      for (const char* n : {"free_fall", "flat_high_friction", "flat_low_friction", "friction_change", "stair"})
+        opt.scenes.push_back(dir + "/" + n + ".yaml");
+  }
+  try {
+    return opt.fidelity ? fidelity(opt) : work_precision(opt);
+  } catch (const std::exception& e) {
+    std::cerr << "pedalwave_workprec: " << e.what() << '\n';
+    return 2;
+  }
+}

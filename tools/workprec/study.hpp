@@ -1,0 +1,60 @@
+// The work-precision study behind pedalwave_workprec: runs of one scene with one integrator,
+// sampled every control period, compared against a tight dopri45 reference.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "pedalwave/model/integrators.hpp"
+#include "pedalwave/model/scene.hpp"
+
+namespace pedalwave::workprec {
+
+// One simulated run: the scene in closed loop (gait controller at `rate_hz`, module-side PD) or
+// open loop (zero commands), integrated with `integ` for `duration` seconds.
+struct RunSpec {
+  model::Scene scene;
+  bool closed_loop = true;
+  double rate_hz = 1000.0;      // control rate = sample rate [Hz]
+  double duration = 10.0;       // simulated time [s]
+  model::IntegratorOptions integ;
+};
+
+// Samples every control period (and at t = 0).
+struct Trajectory {
+  int joints = 0;                 // N−1 [-]
+  std::vector<double> t;          // sample times [s], (n)
+  std::vector<double> com_x;      // whole-robot COM x [m], (n)
+  std::vector<double> com_z;      // whole-robot COM z [m], (n)
+  std::vector<double> alpha;      // joint angles α [rad], (n·(N−1)), sample-major
+};
+
+enum class RunStatus : std::uint8_t { kOk, kUnstable, kFailed };
+const char* to_string(RunStatus s);
+
+struct RunResult {
+  RunStatus status = RunStatus::kOk;
+  std::string why;                // for kUnstable/kFailed: the step status or the blow-up
+  double t_fail = 0.0;            // simulated time reached [s]
+  double wall_s = 0.0;            // wall time of the run [s] (median over repeats)
+  double cpu_s = 0.0;             // CPU time of the run's thread [s] (median over repeats)
+  std::uint64_t evaluations = 0;  // acceleration / implicit-term evaluations [-]
+  std::uint64_t steps = 0;        // accepted steps [-]
+  std::uint64_t rejected = 0;     // rejected (adaptive) steps [-]
+  Trajectory traj;                // empty unless recorded
+};
+
+// Runs `spec` once; records the trajectory when `record`. A NaN/Inf, a failed step or a blow-up
+// (|q̇|∞ > 1e3, far beyond any motion of this robot) ends the run as kUnstable, never a crash.
+RunResult run_once(const RunSpec& spec, bool record);
+
+// Errors of a run against a reference sampled at the same times.
+struct Errors {
+  double com_final = 0.0;  // |COM(T) − COM_ref(T)| [m]
+  double com_max = 0.0;    // max over samples of |COM − COM_ref| [m]
+  double alpha_max = 0.0;  // max over samples and joints of |α − α_ref| [rad]
+};
+Errors compare(const Trajectory& run, const Trajectory& ref);
+
+}  // namespace pedalwave::workprec

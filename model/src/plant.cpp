@@ -27,6 +27,8 @@ Plant::Plant(const Scene& scene)
   Jb_ = MatrixXd::Zero(2, n);
   jn_ = Eigen::RowVectorXd::Zero(n);
   jt_ = Eigen::RowVectorXd::Zero(n);
+  pts_x_ = VectorXd::Zero(P);
+  pts_z_ = VectorXd::Zero(P);
   anchor_ = VectorXd::Zero(P);
   anchored_.assign(static_cast<size_t>(P), 0);
   // Boxes placed relative to the leading (head) tip of the initial state.
@@ -152,16 +154,23 @@ void Plant::add_contact(int k_a, int k_b, double s, const Vec2& n, double depth,
       point_jacobian(m, data_, k_b, Jb_);
       Ja_ = (1 - s) * Ja_ + s * Jb_;
     }
-    jn_.noalias() = n.transpose() * Ja_;
-    jt_.noalias() = t.transpose() * Ja_;
-    jac->dFdq.noalias() -= g.k * jn_.transpose() * jn_;
-    jac->dFdv.noalias() -= g.d * jn_.transpose() * jn_;
-    if (dfdv != 0.0) jac->dFdv.noalias() += dfdv * jt_.transpose() * jt_;
-    // Friction scales with f_N, which depends on depth and its rate: f_T/f_N ∂f_N (non-symmetric).
-    if (fT != 0.0) {
-      const double r = fT / fN;
-      jac->dFdq.noalias() -= (r * g.k) * jt_.transpose() * jn_;
-      jac->dFdv.noalias() -= (r * g.d) * jt_.transpose() * jn_;
+    // One fused pass over the body block (contact never touches the β columns):
+    //   ∂F/∂q −= k Jnᵀ Jn + (f_T/f_N) k Jtᵀ Jn
+    //   ∂F/∂v −= d Jnᵀ Jn + (f_T/f_N) d Jtᵀ Jn − (∂f_T/∂v_t) Jtᵀ Jt
+    // (plain loops: Eigen's dynamic outer products go through its GEMM path, 30 % of a step).
+    const int nb = m.nq1();
+    for (int c = 0; c < nb; ++c) {
+      jn_(c) = n.x() * Ja_(0, c) + n.y() * Ja_(1, c);
+      jt_(c) = t.x() * Ja_(0, c) + t.y() * Ja_(1, c);
+    }
+    const double r = fN > 0 ? fT / fN : 0.0;
+    for (int b = 0; b < nb; ++b) {
+      const double jnb = jn_(b), jtb = jt_(b);
+      for (int a = 0; a < nb; ++a) {
+        const double nn = jn_(a) * jnb, tn = jt_(a) * jnb, tt = jt_(a) * jtb;
+        jac->dFdq(a, b) -= g.k * (nn + r * tn);
+        jac->dFdv(a, b) -= g.d * (nn + r * tn) - dfdv * tt;
+      }
     }
   }
 }
@@ -174,9 +183,15 @@ void Plant::contact_forces(const VectorXd& q, const VectorXd& v, Eigen::Ref<Vect
   x_max_ = -1e300;
   if (!scene_.ground_on && scene_.boxes.empty()) return;
   const Ground& g = scene_.ground;
+  // All body points at once: [x, z] = p + c [cos θ, sin θ].
+  pts_x_.noalias() = m.point_coeff() * data_.cos_t;
+  pts_z_.noalias() = m.point_coeff() * data_.sin_t;
+  pts_x_.array() += q(m.i_px());
+  pts_z_.array() += q(m.i_pz());
+  auto pos = [&](int k) { return Vec2(pts_x_(k), pts_z_(k)); };
   // Ground: every body point against the plane z = ground.z.
   for (int k = 0; k < P; ++k) {
-    const Vec2 p = point_position(m, data_, q, k);
+    const Vec2 p = pos(k);
     x_min_ = std::min(x_min_, p.x());
     x_max_ = std::max(x_max_, p.x());
     if (!scene_.ground_on) continue;
@@ -190,7 +205,7 @@ void Plant::contact_forces(const VectorXd& q, const VectorXd& v, Eigen::Ref<Vect
     if (x_max_ < x0 || x_min_ > x1) continue;
     // Body points inside the box: pushed out through the nearest face.
     for (int k = 0; k < P; ++k) {
-      const Vec2 p = point_position(m, data_, q, k);
+      const Vec2 p = pos(k);
       if (p.x() <= x0 || p.x() >= x1 || p.y() >= z1 || p.y() <= z0 - 1e-9) continue;
       const double d_top = z1 - p.y(), d_left = p.x() - x0, d_right = x1 - p.x();
       Vec2 n(0, 1);
@@ -206,7 +221,7 @@ void Plant::contact_forces(const VectorXd& q, const VectorXd& v, Eigen::Ref<Vect
     for (const Vec2& c : {Vec2(x0, z1), Vec2(x1, z1)}) {
       for (int i = 0; i < m.N(); ++i) {
         const int ka = 2 * i, kb = 2 * i + 2;
-        const Vec2 A = point_position(m, data_, q, ka), B = point_position(m, data_, q, kb);
+        const Vec2 A = pos(ka), B = pos(kb);
         const Vec2 ab = B - A;
         const double len2 = ab.squaredNorm();
         const double s = (c - A).dot(ab) / len2;

@@ -89,6 +89,7 @@ class Plant final : public System {
   VectorXd u_, Q_;
   MatrixXd Ja_, Jb_;
   Eigen::RowVectorXd jn_, jt_;
+  VectorXd pts_x_, pts_z_; // body point positions of the current evaluation [m], (2N+1)
   VectorXd anchor_;        // stick–slip anchor x per ground point [m]
   std::vector<char> anchored_;
   std::mt19937_64 rng_;

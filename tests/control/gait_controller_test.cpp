@@ -263,6 +263,7 @@ TEST(GaitController, NonFiniteInputsAreContained) {
   EXPECT_EQ(out.u[1], 0.0);
   EXPECT_TRUE(out.flags[1] & pc::kJointBadMotor);
   EXPECT_TRUE(out.flags[3] & pc::kJointBadTorque);
+  EXPECT_EQ(out.flags[0], 0);
   EXPECT_TRUE(out.status & pc::kControlBadMeasurement);
   for (int j = 0; j < 5; ++j) {
     const auto i = static_cast<std::size_t>(j);

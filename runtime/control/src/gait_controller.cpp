@@ -208,7 +208,11 @@ std::uint32_t GaitController::update(double t, double dt, const Measurement& m,
       out.flags[i] |= lim.flags;
       if (lim.flags != 0) out.status |= kControlSaturated;
     }
-    if (!std::isfinite(deflection) || !sizes_ok) out.status |= kControlBadMeasurement;
+    if (!std::isfinite(deflection)) {
+      out.flags[i] |= kJointBadTorque;  // η_j is not advanced with it (Admittance::step)
+      out.status |= kControlBadMeasurement;
+    }
+    if (!sizes_ok) out.status |= kControlBadMeasurement;
     state.u_prev[i] = out.u[i];
   }
 

@@ -16,7 +16,7 @@ JointStateMsg joint(std::uint64_t seq, std::size_t n) {
   m.alpha.assign(n, 0.1);
   m.deflection.assign(n, 0.0);
   m.tau_sea.assign(n, 0.5);
-  m.tau_sea[1] = -1.5;
+  if (n > 1) m.tau_sea[1] = -1.5;
   return m;
 }
 

@@ -235,8 +235,9 @@ std::string MonitorState::render(std::int64_t now_ns, bool ansi) const {
       const double ext = observer_ ? at(observer_->tau_ext, j) : std::nan("");
       const bool isolated = observer_ && observer_->fault_joint == static_cast<int>(j);
       line(fmt::format("{}{:>5}{}  {:+9.4f}  {:+9.4f} {}  {:+9.4f} {}  {:+9.4f}",
-                       isolated ? st.red() : "", j, isolated ? st.reset() : "", joint_->beta[j],
-                       joint_->tau_sea[j], bar(joint_->tau_sea[j], tau_scale, 12), res,
+                       isolated ? st.red() : "", j, isolated ? st.reset() : "",
+                       at(joint_->beta, j), at(joint_->tau_sea, j),
+                       bar(at(joint_->tau_sea, j), tau_scale, 12), res,
                        bar(res, res_scale, 12), ext));
     }
   }

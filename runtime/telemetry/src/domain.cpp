@@ -11,7 +11,9 @@
 namespace pedalwave::telemetry::detail {
 namespace {
 
-std::mutex g_mutex;
+// Recursive: a Domain whose last reference dies inside acquire_domain (while the lock is held)
+// locks it again in its destructor.
+std::recursive_mutex g_mutex;
 std::map<std::uint32_t, std::weak_ptr<Domain>> g_domains;
 
 }  // namespace

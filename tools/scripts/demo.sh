@@ -6,4 +6,4 @@ cd "$root"
 bash tools/scripts/deps.sh
 cmake -S . -B build/release -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build build/release -j"$(nproc)"
-exec build/release/tools/pedalwave_demo --out out/demo "$@"
+exec build/release/tools/runtime/pedalwave_runtime --config config/runtime/demo.yaml --plots out/demo "$@"

@@ -84,6 +84,16 @@ SimDriver::SimDriver(const model::Scene& scene, const SimDriverOptions& opt,
   meas_.beta_dot = Eigen::VectorXd::Zero(J);
   meas_.deflection = Eigen::VectorXd::Zero(J);
   cmd_.joints = joints_;
+  // Recorder: everything allocated here, before any cycle.
+  if (opt_.record_every > 0 && opt_.record_capacity > 0) {
+    const model::Simulation& s = *sim_;
+    rec_.nq = static_cast<int>(s.q().size());
+    rec_.t.assign(opt_.record_capacity, 0.0);
+    rec_.q.assign(opt_.record_capacity * static_cast<std::size_t>(rec_.nq), 0.0);
+    rec_.v.assign(opt_.record_capacity * static_cast<std::size_t>(rec_.nq), 0.0);
+    rec_.u.assign(opt_.record_capacity * static_cast<std::size_t>(joints_), 0.0);
+    u_rec_ = Eigen::VectorXd::Zero(J);
+  }
 }
 
 SimDriver::~SimDriver() { stop(); }
@@ -111,6 +121,21 @@ void SimDriver::advance_one_period() {
   if (s.t() - last_cmd_t_ > opt_.command_timeout) watchdog_off_ = true;
   to_actuator_input(cmd_, s.plant().input());
   if (watchdog_off_ || safe_stopped_) s.plant().input().torque_off = true;
+  // Record the state at the start of the period, with the torque the modules apply now.
+  if (opt_.record_every > 0 && periods_ % static_cast<std::uint64_t>(opt_.record_every) == 0 &&
+      rec_.count < rec_.t.size()) {
+    const std::size_t i = rec_.count++;
+    const auto nq = static_cast<std::size_t>(rec_.nq);
+    rec_.t[i] = s.t();
+    for (std::size_t c = 0; c < nq; ++c) {
+      rec_.q[i * nq + c] = s.q()(static_cast<Eigen::Index>(c));
+      rec_.v[i * nq + c] = s.v()(static_cast<Eigen::Index>(c));
+    }
+    s.plant().motor_torques(s.q(), s.v(), u_rec_);
+    for (int j = 0; j < joints_; ++j)
+      rec_.u[i * static_cast<std::size_t>(joints_) + static_cast<std::size_t>(j)] = u_rec_(j);
+  }
+  ++periods_;
   const model::StepStatus st = s.advance_to(s.t() + opt_.period);
   if (st != model::StepStatus::kOk) status_.store(static_cast<int>(st));
 }
@@ -118,6 +143,17 @@ void SimDriver::advance_one_period() {
 IoStatus SimDriver::read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback& out) {
   (void)deadline_ns;
   if (opt_.clock == SimClock::kLockstep) {
+    // The plant follows the loop's clock: when the loop skipped periods (an overrun), the robot
+    // kept moving under the last command for that time too.
+    if (last_read_ns_ != 0 && now_ns > last_read_ns_) {
+      const double lag = static_cast<double>(now_ns - last_read_ns_) * 1e-9 - opt_.period;
+      if (lag > 0.5 * opt_.period) {
+        model::Simulation& s = *sim_;
+        const model::StepStatus st = s.advance_to(s.t() + lag);
+        if (st != model::StepStatus::kOk) status_.store(static_cast<int>(st));
+      }
+    }
+    last_read_ns_ = now_ns;
     measure_into(out);
     out.stamp_ns = static_cast<std::int64_t>(std::llround(sim_->t() * 1e9));
   } else {

@@ -5,7 +5,9 @@
 // Clocks:
 //  kLockstep    deterministic: read() measures the plant at its current time; write() applies the
 //               command and advances the plant by exactly one period. Same configuration → bit-
-//               identical results. For tests, offline tools and the demo.
+//               identical results. For tests, offline tools and the demo. If the loop's clock
+//               (read's now_ns) jumped by more than a period — an overrun skipped periods — the
+//               plant first advances by the missed time under the last command.
 //  kFreeRunning the plant advances in real time on its own thread (period-sized chunks against
 //               CLOCK_MONOTONIC); read()/write() exchange the latest measurement/command through
 //               seqlocks: never block, never allocate. For demos and HIL-like runs.
@@ -18,6 +20,7 @@
 #include <cstdint>
 #include <memory>
 #include <thread>
+#include <vector>
 
 #include "pedalwave/drivers/io.hpp"
 #include "pedalwave/model/plant.hpp"
@@ -30,6 +33,18 @@ struct SimDriverOptions {
   SimClock clock = SimClock::kLockstep;
   double period = 1e-3;            // plant advance per cycle (lockstep) / chunk (free-running) [s]
   double command_timeout = 0.05;   // command lifetime before the modules drop to torque off [s]
+  int record_every = 0;            // record the true plant state every n periods; 0 = off [-]
+  std::size_t record_capacity = 0; // samples the recorder holds (preallocated; then it stops) [-]
+};
+
+// The true plant trajectory (ground truth for plots and checks), recorded without allocating.
+struct SimRecording {
+  int nq = 0;                       // coordinates per sample [-]
+  std::size_t count = 0;            // samples recorded [-]
+  std::vector<double> t;            // [s], (capacity)
+  std::vector<double> q;            // row-major count × nq (model-spec coordinates)
+  std::vector<double> v;            // row-major count × nq
+  std::vector<double> u;            // row-major count × (N-1): motor torque applied [N·m]
 };
 
 class SimDriver final : public Driver {
@@ -58,6 +73,8 @@ class SimDriver final : public Driver {
   // First plant failure (NaN, singular M), or kOk.
   model::StepStatus plant_status() const { return static_cast<model::StepStatus>(status_.load()); }
   bool torque_off_by_watchdog() const { return watchdog_off_; }
+  // The recorder (read after the loop has stopped).
+  const SimRecording& recording() const { return rec_; }
 
  private:
   void measure_into(Feedback& fb);
@@ -76,6 +93,10 @@ class SimDriver final : public Driver {
   bool safe_stopped_ = false;
   std::uint64_t seq_ = 0;
   std::atomic<int> status_{0};
+  SimRecording rec_;
+  std::uint64_t periods_ = 0;
+  std::int64_t last_read_ns_ = 0;  // lockstep: the loop's time at the previous read [ns]
+  Eigen::VectorXd u_rec_;
 
   // Free-running exchange (seqlocks: writer increments to odd, copies, increments to even).
   struct alignas(64) SeqFeedback {

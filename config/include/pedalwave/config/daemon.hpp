@@ -1,0 +1,64 @@
+// The runtime daemon's configuration file (config/runtime/*.yaml) → the parameter structs of every
+// component it wires: the loop (runtime::RuntimeConfig), the controller
+// (control::GaitControllerParams), the driver (simulated plant, SocketCAN or serial servo bus), the
+// observer switch and the telemetry (DDS). Validated before anything starts: bad YAML → file,
+// line, key, value and what was expected; a rate the bus cannot sustain → refused with the numbers
+// (the drivers' budget checks run here, at load time).
+#pragma once
+
+#include <string>
+
+#include "pedalwave/config/yaml_reader.hpp"
+#include "pedalwave/control/gait_controller.hpp"
+#include "pedalwave/drivers/serial_driver.hpp"
+#include "pedalwave/drivers/sim_driver.hpp"
+#include "pedalwave/drivers/socketcan_driver.hpp"
+#include "pedalwave/model/scene.hpp"
+#include "pedalwave/runtime/runtime.hpp"
+
+namespace pedalwave::config {
+
+enum class DriverKind : std::uint8_t { kSim, kSocketCan, kSerial };
+const char* to_string(DriverKind k);
+
+struct DriverSelection {
+  DriverKind kind = DriverKind::kSim;
+  // kSim: the scene file (relative paths are relative to the daemon config) and the plant clock.
+  std::string scene_path;
+  model::Scene scene;
+  drivers::SimDriverOptions sim;
+  drivers::SocketCanConfig can;
+  drivers::SerialConfig serial;
+};
+
+struct TelemetrySection {
+  bool enabled = false;
+  std::uint32_t domain_id = 0;        // DDS domain [-]
+  std::string interface = "lo";       // network interface ("lo" for the demo)
+  std::vector<std::string> peers;     // unicast peers (loopback discovery)
+  int decimation_state = 10;          // joint/controller/observer state every n cycles [-]
+  int decimation_timing = 10;         // loop timing every n cycles [-]
+  bool commands = true;               // accept operator commands (e-stop always honoured)
+  double amplitude_max = 1.2;         // kSetGait bounds: A_p ≤ [rad]
+  double omega_max = 12.0;            // ω ≤ [rad/s]
+  double eta_min = -3.2, eta_max = 3.2;  // η range [rad]
+};
+
+struct DaemonConfig {
+  std::string source;                 // the file
+  std::string name = "pedalwave";
+  double duration = 0.0;              // stop (safe stop) after this long [s]; 0 = until a signal
+  model::Params robot;                // the robot the controller is tuned for (sim: the scene's)
+  runtime::RuntimeConfig runtime;
+  control::GaitControllerParams controller;
+  DriverSelection driver;
+  bool observer = true;
+  TelemetrySection telemetry;
+  std::string log_file;               // events log; empty = stderr
+};
+
+DaemonConfig load_daemon_config(const std::string& path);
+DaemonConfig parse_daemon_config(const std::string& text, const std::string& name,
+                                 const std::string& base_dir);
+
+}  // namespace pedalwave::config

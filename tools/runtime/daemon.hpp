@@ -1,0 +1,30 @@
+// The runtime daemon, as a library so tests run it in-process: wires the configured driver
+// (simulated plant, SocketCAN, serial servo bus), the gait controller, the observer and the DDS
+// telemetry around runtime::Runtime, runs the loop on its own thread until the duration, a signal
+// or a fault, and reports: forward speed, loop timing percentiles, faults; optional plots.
+#pragma once
+
+#include <string>
+
+#include "pedalwave/config/daemon.hpp"
+#include "pedalwave/runtime/runtime.hpp"
+
+namespace pedalwave::app {
+
+struct DaemonOptions {
+  std::string plots_dir;     // write plots (and a CSV of the cycle samples) here; empty = none
+  bool telemetry = true;     // false overrides the configuration's telemetry.enabled
+  bool print = true;         // print the start report and the summary to stdout
+};
+
+struct DaemonResult {
+  runtime::RunResult run;
+  double forward_speed = 0.0;  // average COM speed along +X after the first 2 s [m/s] (sim only)
+  double sim_time = 0.0;       // simulated time covered [s] (sim only)
+  std::string summary;         // the printed summary
+  bool telemetry_active = false;
+};
+
+DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& opt);
+
+}  // namespace pedalwave::app

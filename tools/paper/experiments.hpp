@@ -1,0 +1,101 @@
+// The paper reproduction's engine (pedalwave_paper): one closed-loop run of a scene with the
+// runtime's controller (simloop::ClosedLoop: the controller sees only β, β̇ and the deflection),
+// the measures the paper reports (average forward speed, head-tip crossing, SEA torque peaks,
+// stair-climb events) and a thread pool that runs many independent runs over the cores.
+//
+// Conventions: the robot walks toward +X, the head tip (point 2N) leads; the "head joint" is the
+// joint next to the head, joint N−1 (0-based index N−2). Average forward speed is
+//   v̄ = (x_COM(T) − x_COM(t_0)) / (T − t_0),   t_0 = one gait period 2π/ω (2 s for the paper's ω),
+// x_COM the whole-robot centre of mass (links and rotors). Runs are deterministic: a run depends
+// only on its RunSpec, never on the thread that executes it.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "pedalwave/model/integrators.hpp"
+#include "pedalwave/model/scene.hpp"
+
+namespace pedalwave::paper {
+
+inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// One closed-loop run.
+struct RunSpec {
+  model::Scene scene;              // the scene; its duration is the run's length [s]
+  double k_c = 0.0;                // adaptive admittance gain [-] (0: open-loop gait)
+  model::IntegratorOptions integ;  // plant integrator
+  double rate_hz = 1000.0;         // control rate [Hz]
+  double sample_every = 0.0;       // trace sample period [s], a multiple of 1/rate; 0 = no trace
+  double cross_x = kNaN;           // record when the head tip first reaches x ≥ cross_x [m]; NaN = no
+  double avg_from = kNaN;          // start of the speed average t_0 [s]; NaN = one gait period
+};
+
+// Samples every RunSpec::sample_every (n samples).
+struct Trace {
+  std::vector<double> t;                        // [s], (n)
+  std::vector<double> com_x, com_z;             // whole-robot COM [m], (n)
+  std::vector<double> head_x, head_z;           // head tip (point 2N) [m], (n)
+  std::vector<double> tail_x, tail_z;           // tail tip (point 0) [m], (n)
+  std::vector<double> tau_head;                 // SEA torque K(β − α) of the head joint [N·m], (n)
+  std::vector<double> eta_head;                 // spatial frequency η of the head joint [rad], (n)
+  std::vector<std::vector<double>> body_x;      // [sample][point] the 2N+1 body points [m]
+  std::vector<std::vector<double>> body_z;      // [sample][point] [m]
+};
+
+// Stair events (first box of the scene); NaN = never happened within the run.
+struct StairEvents {
+  double x_near = kNaN, x_far = kNaN;  // box extent along X [m]
+  double top = kNaN;                   // box top height [m]
+  double t_head_on_top = kNaN;   // head tip on the top face: x_near ≤ x ≤ x_far and
+                                 // top − kOnTopBelow ≤ z ≤ top + kOnTopAbove [s]
+  double t_com_past = kNaN;      // whole-robot COM x > x_far [s]
+  double t_body_past = kNaN;     // every body point x > x_far ("whole body past the box") [s]
+  double max_head_z = kNaN;      // highest head-tip z over the run [m]
+};
+inline constexpr double kOnTopBelow = 0.01;   // [m] contact penetration plus margin
+inline constexpr double kOnTopAbove = 0.005;  // [m] touching, not swinging over it
+
+struct RunResult {
+  model::StepStatus status = model::StepStatus::kOk;  // kOk or the plant failure that stopped it
+  double t_end = 0.0;          // plant time reached [s]
+  double avg_from = 0.0;       // t_0 of the speed average [s]
+  double avg_speed = kNaN;     // v̄ over [t_0, t_end] [m/s] (NaN if the run ended before t_0)
+  double com_x_final = kNaN;   // [m]
+  double t_head_cross = kNaN;  // head tip first x ≥ cross_x [s]
+  StairEvents stair;           // when the scene has a box
+  double cpu_s = 0.0;          // CPU time of this run's thread [s]
+  double wall_s = 0.0;         // wall time [s]
+  std::uint64_t steps = 0;     // plant steps
+  Trace trace;                 // when sample_every > 0
+  model::Scene resolved;       // the scene as the plant placed it (boxes at absolute x)
+};
+
+// Runs spec.scene for its duration. Throws std::invalid_argument for an invalid scene,
+// integrator or sample period; a plant failure is reported in status (the measures then cover
+// the time reached).
+RunResult run(const RunSpec& spec);
+
+// Gait period 2π/|ω| of a scene [s].
+double gait_period(const model::Scene& s);
+
+// Negative peaks of a signal: samples i with y[i] < 0 that are the minimum of y over
+// [t_i − window/2, t_i + window/2] (one per gait period for window = the gait period).
+// Returns indices in ascending time.
+std::vector<std::size_t> negative_peaks(const std::vector<double>& t, const std::vector<double>& y,
+                                        double window);
+
+// Runs f(i) for i = 0 … n−1 on `jobs` threads (1 = in the calling thread), taking items in
+// order from a shared counter; `done` (may be empty) is called after each item, from the
+// worker. The first exception thrown by f is rethrown after all threads stopped.
+void parallel_for(std::size_t n, int jobs, const std::function<void(std::size_t)>& f,
+                  const std::function<void()>& done = {});
+
+// Jobs to use by default: the number of hardware threads (at least 1).
+int default_jobs();
+
+}  // namespace pedalwave::paper

@@ -1,0 +1,194 @@
+// pedalwave_paper — reproduce the paper's results (model-spec.md §9) with the runtime's controller
+// against the plant model, closed loop at the control rate (simloop).
+//
+//   pedalwave_paper flat        [--duration 60]
+//   pedalwave_paper friction    [--duration (scene's)]
+//   pedalwave_paper stair       [--duration 60] [--k_c 0 10.1] [--every 1.5]
+//   pedalwave_paper sweep       [--from 0] [--to 15] [--step 0.1] [--duration 60] [--checks 4] [--check-h 2.5e-4]
+//   pedalwave_paper sensitivity [--K 1 3 10 30 100] [--I_r 1e-8 5e-8 2e-7] [--no-model-options] [--duration 60]
+//   pedalwave_paper all         [--duration 60] [--from --to --step --checks --check-h]
+// Every subcommand also takes --out DIR (default out/paper), --scenes DIR, --jobs N, --integrator
+// NAME, --h s, --rate Hz, --no-plots, --quiet. Figures (SVG + PNG) and a Markdown fragment go to
+// DIR; the numbers are printed. Exit codes: 0 done; 2 bad input (one line on stderr); 1 other
+// errors (e.g. cannot write DIR).
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "paper.hpp"
+
+namespace {
+
+namespace paper = pedalwave::paper;
+namespace model = pedalwave::model;
+
+constexpr int kExitBadInput = 2;
+
+struct Common {
+  std::string out = "out/paper";
+  std::string scenes = PEDALWAVE_SCENES_DIR;
+  int jobs = paper::default_jobs();
+  std::string integrator = "implicit_velocity";
+  double h = 1e-3;
+  double rate = 1000.0;
+  bool no_plots = false;
+  bool quiet = false;
+};
+
+void add_common(CLI::App* sub, Common& c) {
+  sub->add_option("--out", c.out, "output folder for figures and Markdown")->capture_default_str();
+  sub->add_option("--scenes", c.scenes, "folder of the shipped scene files")->capture_default_str();
+  sub->add_option("--jobs", c.jobs, "worker threads for independent runs")->check(CLI::Range(1, 256))
+      ->capture_default_str();
+  sub->add_option("--integrator", c.integrator,
+                  "euler | semi_implicit_euler | implicit_velocity | rk4 | dopri45")->capture_default_str();
+  sub->add_option("--h", c.h, "plant integrator step [s] (≤ the control period)")->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  sub->add_option("--rate", c.rate, "control rate [Hz]")->check(CLI::PositiveNumber)->capture_default_str();
+  sub->add_flag("--no-plots", c.no_plots, "write no figures");
+  sub->add_flag("--quiet", c.quiet, "no progress bars");
+}
+
+paper::Settings settings(const Common& c) {
+  paper::Settings s;
+  s.out_dir = c.out;
+  s.scenes_dir = c.scenes;
+  s.jobs = c.jobs;
+  s.integ.method = model::parse_method(c.integrator);
+  s.integ.h = c.h;
+  model::validate(s.integ);
+  s.rate_hz = c.rate;
+  s.plots = !c.no_plots;
+  s.progress = !c.quiet;
+  return s;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"pedalwave_paper: reproduce the paper's results (flat ground, friction change, stair, "
+               "the k_c sweep) with the runtime's controller against the plant model"};
+  app.require_subcommand(1);
+  Common c;
+  double duration = 60.0, friction_duration = 0.0, every = 1.5;
+  std::vector<double> k_c{0.0, 10.1};
+  paper::SweepOptions sw;
+  paper::SensitivityOptions se;
+  bool no_model_options = false;
+
+  auto* flat = app.add_subcommand("flat", "average forward speed at μ = 0.82 and μ = 0.40");
+  add_common(flat, c);
+  flat->add_option("--duration", duration, "simulated time per run [s]")->check(CLI::PositiveNumber)->capture_default_str();
+
+  auto* fric = app.add_subcommand("friction", "head-joint SEA torque across the friction change (Fig. 7)");
+  add_common(fric, c);
+  fric->add_option("--duration", friction_duration, "simulated time [s] (default: the scene's)")
+      ->check(CLI::PositiveNumber);
+
+  auto* stair = app.add_subcommand("stair", "k_c = 0 against k_c = 10.1 over the stair (Fig. 10)");
+  add_common(stair, c);
+  stair->add_option("--duration", duration, "simulated time per run [s]")->check(CLI::PositiveNumber)->capture_default_str();
+  stair->add_option("--k_c", k_c, "adaptive gains to compare")->capture_default_str();
+  stair->add_option("--every", every, "snapshot spacing of the shape plots [s]")->check(CLI::PositiveNumber)
+      ->capture_default_str();
+
+  auto* sweep = app.add_subcommand("sweep", "average speed over the stair against k_c (Fig. 9)");
+  add_common(sweep, c);
+  sweep->add_option("--from", sw.from, "first k_c")->capture_default_str();
+  sweep->add_option("--to", sw.to, "last k_c")->capture_default_str();
+  sweep->add_option("--step", sw.step, "k_c step")->check(CLI::PositiveNumber)->capture_default_str();
+  sweep->add_option("--duration", sw.duration, "simulated time per run [s]")->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  sweep->add_option("--checks", sw.checks, "k_c values re-run at --check-h (0 = none)")->check(CLI::Range(0, 16))
+      ->capture_default_str();
+  sweep->add_option("--check-h", sw.check_h, "finer step of the accuracy check [s]")->check(CLI::PositiveNumber)
+      ->capture_default_str();
+
+  auto* sens = app.add_subcommand("sensitivity", "how the results move with K and I_r (unpublished)");
+  add_common(sens, c);
+  sens->add_option("--K", se.K, "SEA stiffness values [N·m/rad]")->capture_default_str();
+  sens->add_option("--I_r", se.I_r, "rotor inertia values [kg·m²]")->capture_default_str();
+  sens->add_flag("--no-model-options", no_model_options, "skip the friction-at-COM and v_s rows");
+  sens->add_option("--duration", duration, "flat and stair runs [s]")->check(CLI::PositiveNumber)->capture_default_str();
+  sens->add_option("--friction-duration", friction_duration, "friction runs [s] (default: the scene's)")
+      ->check(CLI::PositiveNumber);
+
+  auto* all = app.add_subcommand("all", "everything, and DIR/paper_table.md");
+  add_common(all, c);
+  all->add_option("--duration", duration, "flat, stair, sweep and sensitivity runs [s]")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  all->add_option("--friction-duration", friction_duration, "friction runs [s] (default: the scene's)")
+      ->check(CLI::PositiveNumber);
+  all->add_option("--from", sw.from, "first k_c of the sweep")->capture_default_str();
+  all->add_option("--to", sw.to, "last k_c of the sweep")->capture_default_str();
+  all->add_option("--step", sw.step, "k_c step of the sweep")->check(CLI::PositiveNumber)->capture_default_str();
+  all->add_option("--checks", sw.checks, "k_c values re-run at --check-h")->check(CLI::Range(0, 16))
+      ->capture_default_str();
+  all->add_option("--check-h", sw.check_h, "finer step of the accuracy check [s]")->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  all->add_option("--K", se.K, "sensitivity: SEA stiffness values [N·m/rad]")->capture_default_str();
+  all->add_option("--I_r", se.I_r, "sensitivity: rotor inertia values [kg·m²]")->capture_default_str();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) return app.exit(e);
+    std::cerr << "pedalwave_paper: error: " << e.what() << '\n';
+    return kExitBadInput;
+  }
+
+  paper::Settings s;
+  try {
+    s = settings(c);
+    if (!(s.integ.h <= 1.0 / s.rate_hz * (1 + 1e-9)))
+      throw std::invalid_argument("--h " + std::to_string(s.integ.h) +
+                                  ": expected ≤ the control period 1/rate = " + std::to_string(1.0 / s.rate_hz) + " s");
+    (void)paper::sweep_grid(sw.from, sw.to, sw.step);
+    for (double K : se.K)
+      if (!(K > 0)) throw std::invalid_argument("--K " + std::to_string(K) + ": expected > 0 [N·m/rad]");
+    for (double I : se.I_r)
+      if (!(I > 0)) throw std::invalid_argument("--I_r " + std::to_string(I) + ": expected > 0 [kg·m²]");
+    se.model_options = !no_model_options;
+    se.flat_duration = se.stair_duration = duration;
+    se.friction_duration = friction_duration;
+  } catch (const std::exception& e) {
+    std::cerr << "pedalwave_paper: error: " << e.what() << '\n';
+    return kExitBadInput;
+  }
+
+  try {
+    std::cout << "pedalwave_paper: output in " << s.out_dir.string() << ", " << s.jobs << " threads, "
+              << model::to_string(s.integ.method) << " h = " << s.integ.h << " s, control " << s.rate_hz
+              << " Hz\n";
+    if (*flat) {
+      paper::flat(s, duration);
+    } else if (*fric) {
+      paper::friction(s, friction_duration);
+    } else if (*stair) {
+      paper::stair(s, duration, k_c, every);
+    } else if (*sweep) {
+      paper::sweep(s, sw);
+    } else if (*sens) {
+      paper::sensitivity(s, se);
+    } else if (*all) {
+      paper::AllOptions o;
+      o.flat_duration = o.stair_duration = duration;
+      o.friction_duration = friction_duration;
+      o.sweep = sw;
+      o.sweep.duration = duration;
+      o.sensitivity = se;
+      const paper::AllResult r = paper::all(s, o);
+      std::cout << '\n' << r.table;
+    }
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "pedalwave_paper: error: " << e.what() << '\n';
+    return kExitBadInput;
+  } catch (const std::exception& e) {
+    std::cerr << "pedalwave_paper: error: " << e.what() << '\n';
+    return 1;
+  }
+  return 0;
+}

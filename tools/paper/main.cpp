@@ -3,7 +3,7 @@
 //
 //   pedalwave_paper flat        [--duration 60]
 //   pedalwave_paper friction    [--duration (scene's)]
-//   pedalwave_paper stair       [--duration 60] [--k_c 0 10.1] [--every 1.5]
+//   pedalwave_paper stair       [--duration 60] [--k_c 0 10.1] [--every 1.5] [--heights 0.03 0.04 0.05 0.06]
 //   pedalwave_paper sweep       [--from 0] [--to 15] [--step 0.1] [--duration 60] [--checks 4] [--check-h 2.5e-4]
 //   pedalwave_paper sensitivity [--K 1 3 10 30 100] [--I_r 1e-8 5e-8 2e-7] [--no-model-options] [--duration 60]
 //   pedalwave_paper all         [--duration 60] [--from --to --step --checks --check-h]
@@ -75,6 +75,7 @@ int main(int argc, char** argv) {
   Common c;
   double duration = 60.0, friction_duration = 0.0, every = 1.5;
   std::vector<double> k_c{0.0, 10.1};
+  std::vector<double> heights{0.03, 0.04, 0.05, 0.06};
   paper::SweepOptions sw;
   paper::SensitivityOptions se;
   bool no_model_options = false;
@@ -92,6 +93,8 @@ int main(int argc, char** argv) {
   add_common(stair, c);
   stair->add_option("--duration", duration, "simulated time per run [s]")->check(CLI::PositiveNumber)->capture_default_str();
   stair->add_option("--k_c", k_c, "adaptive gains to compare")->capture_default_str();
+  stair->add_option("--heights", heights, "box heights of the height scan [m] (none: --heights with no value)")
+      ->expected(0, -1)->capture_default_str();
   stair->add_option("--every", every, "snapshot spacing of the shape plots [s]")->check(CLI::PositiveNumber)
       ->capture_default_str();
 
@@ -168,7 +171,7 @@ int main(int argc, char** argv) {
     } else if (*fric) {
       paper::friction(s, friction_duration);
     } else if (*stair) {
-      paper::stair(s, duration, k_c, every);
+      paper::stair(s, duration, k_c, every, heights);
     } else if (*sweep) {
       paper::sweep(s, sw);
     } else if (*sens) {

@@ -355,17 +355,36 @@ void stair_plots(const Settings& s, const StairCase& c, double snapshot_every) {
 
 }  // namespace
 
-StairResult stair(const Settings& s, double duration, std::vector<double> k_c, double snapshot_every) {
+StairResult stair(const Settings& s, double duration, std::vector<double> k_c, double snapshot_every,
+                  std::vector<double> heights) {
+  if (k_c.empty()) throw std::invalid_argument("--k_c: expected at least one value");
+  for (double h : heights)
+    if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("--heights " + fmt(h) + ": expected > 0 [m]");
   log(s) << "== stair: k_c ";
   for (double k : k_c) log(s) << fmt(k) << ' ';
   log(s) << "(" << duration << " s, " << describe_integ(s) << ")\n";
   const model::Scene sc = load(s, "stair");
   std::vector<RunSpec> specs;
   for (double k : k_c) specs.push_back(make_spec(s, sc, duration, k, 0.05));
+  for (double h : heights)
+    for (double k : k_c) {
+      model::Scene low = sc;
+      for (model::Box& b : low.boxes) b.height = h;
+      specs.push_back(make_spec(s, low, duration, k, 0.0));
+    }
   auto res = run_all(s, specs, "stair");
   StairResult out;
   out.duration = duration;
   for (std::size_t i = 0; i < k_c.size(); ++i) out.cases.push_back({k_c[i], std::move(res[i])});
+  for (std::size_t hi = 0; hi < heights.size(); ++hi) {
+    StairHeight row{heights[hi], {}, {}};
+    for (std::size_t i = 0; i < k_c.size(); ++i) {
+      const RunResult& r = res[k_c.size() * (1 + hi) + i];
+      row.speed.push_back(r.avg_speed);
+      row.t_body_past.push_back(r.stair.t_body_past);
+    }
+    out.heights.push_back(std::move(row));
+  }
   const StairEvents& e0 = out.cases.front().run.stair;
   log(s) << "  box x = " << fmt(e0.x_near) << " … " << fmt(e0.x_far) << " m, top z = " << fmt(e0.top) << " m\n";
   tk::Table t({"k_c", "avg speed", "head on top", "COM past far edge", "whole body past", "max head z", "run"});
@@ -385,6 +404,15 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
     log(s) << "  speed k_c = " << fmt(out.cases[1].k_c) << " over k_c = " << fmt(out.cases[0].k_c) << ": "
            << pct(g) << "   (paper: +24.8 % at k_c = 10.1, ≈ 2.13 cm/s; experiment climbs at 1.3 cm/s)\n";
   }
+  std::vector<std::string> hh{"box height"};
+  for (double k : k_c) hh.push_back("k_c = " + fmt(k) + ": speed, whole body past");
+  tk::Table ht(hh);
+  for (const StairHeight& h : out.heights) {
+    std::vector<std::string> cells{fmt(h.height * 100) + " cm"};
+    for (std::size_t i = 0; i < k_c.size(); ++i) cells.push_back(cms(h.speed[i]) + ", " + secs(h.t_body_past[i]));
+    ht.add_row(cells);
+  }
+  if (!out.heights.empty()) log(s) << "  box-height scan (same scene, lower boxes):\n" << ht.to_text();
   if (s.plots) {
     for (const StairCase& c : out.cases) stair_plots(s, c, snapshot_every);
     tk::Figure fig(3, 1, 1100, 750);
@@ -423,6 +451,8 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
      << "COM beyond the far edge. *Whole body past*: all 2N+1 body points beyond the far edge. "
      << "Speed: COM x from t = " << fmt(out.cases.front().run.avg_from) << " s.\n\n"
      << t.to_markdown() << '\n';
+  if (!out.heights.empty())
+    md << "The same runs over lower boxes (which height can the robot climb?):\n\n" << ht.to_markdown() << '\n';
   for (const StairCase& c : out.cases)
     md << "![k_c = " << fmt(c.k_c) << "](stair_shapes_" << kc_tag(c.k_c) << ".svg)\n"
        << "![k_c = " << fmt(c.k_c) << " film](stair_film_" << kc_tag(c.k_c) << ".svg)\n";
@@ -649,7 +679,10 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
     row.v_high = r[0].avg_speed;
     row.v_low = r[1].avg_speed;
     row.gain = row.v_high / row.v_low - 1.0;
-    row.peak_change = split_peaks(r[2], gait_period(fr), r[2].t_head_cross).change;
+    const PeakSplit ps = split_peaks(r[2], gait_period(fr), r[2].t_head_cross);
+    row.peak_change = ps.change;
+    row.peaks_before = static_cast<int>(ps.before.size());
+    row.peaks_after = static_cast<int>(ps.after.size());
     row.stair_v0 = r[3].avg_speed;
     row.stair_vkc = r[4].avg_speed;
     row.stair_gain = row.stair_vkc / row.stair_v0 - 1.0;
@@ -661,7 +694,9 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
     for (int k = 0; k < kRuns; ++k)
       if (r[k].status != model::StepStatus::kOk) bad += " run " + std::to_string(k) + " " + std::string(model::to_string(r[k].status));
     t.add_row({row.parameter, row.value + (bad.empty() ? "" : " (STOPPED:" + bad + ")"), cms(row.v_high),
-               cms(row.v_low), pct(row.gain), pct(row.peak_change), cms(row.stair_v0), cms(row.stair_vkc),
+               cms(row.v_low), pct(row.gain),
+               pct(row.peak_change) + " (" + std::to_string(row.peaks_before) + "/" + std::to_string(row.peaks_after) + " peaks)",
+               cms(row.stair_v0), cms(row.stair_vkc),
                pct(row.stair_gain), secs(row.past0) + " / " + secs(row.pastkc)});
     out.rows.push_back(row);
   }
@@ -672,7 +707,7 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
      << fmt(Ir0) << " kg·m²); the last rows switch one model option instead. Flat and stair runs "
      << fmt(o.flat_duration) << " s / " << fmt(o.stair_duration) << " s, friction " << fmt(fr_dur) << " s, "
      << describe_integ(s) << ". *friction gain* = v(0.82)/v(0.40) − 1 (paper +20.3 % exp., +13.7 % sim.); "
-     << "*torque-peak change* (paper +4.3 % / +16.3 %); *stair gain* = v(k_c = " << fmt(o.k_c)
+     << "*torque-peak change* (paper +4.3 % / +16.3 %; peaks before/after the crossing in brackets); *stair gain* = v(k_c = " << fmt(o.k_c)
      << ")/v(0) − 1 (paper +24.8 %); *body past*: the whole body beyond the box's far edge.\n\n"
      << t.to_markdown();
   out.markdown = md.str();
@@ -752,6 +787,28 @@ std::string paper_table(const AllResult& r, std::size_t* rows) {
     return "head on top " + secs(e.t_head_on_top) + ", whole body past " + secs(e.t_body_past);
   };
 
+  // Where a stair run ended, and which box heights were climbed.
+  auto stuck = [](const StairCase* c) {
+    if (!c) return std::string();
+    const RunResult& q = c->run;
+    if (!std::isnan(q.stair.t_body_past))
+      return "With k_c = " + fmt(c->k_c) + " the whole body is past the box at " + secs(q.stair.t_body_past) + ". ";
+    return "With k_c = " + fmt(c->k_c) + " the robot does not get past the box: its COM ends at x = " +
+           fixed(q.com_x_final * 100, 1) + " cm (box " + fixed(q.stair.x_near * 100, 1) + " … " +
+           fixed(q.stair.x_far * 100, 1) + " cm). ";
+  };
+  std::string climbable;
+  {
+    double best_h = kNaN;
+    for (const StairHeight& h : r.stair.heights)
+      for (double tp : h.t_body_past)
+        if (!std::isnan(tp)) best_h = std::isnan(best_h) ? h.height : std::max(best_h, h.height);
+    if (!r.stair.heights.empty())
+      climbable = std::isnan(best_h)
+                      ? "In the box-height scan (stair.md) no height was passed within the run. "
+                      : "In the box-height scan (stair.md) the highest box the whole body passed is " +
+                            fmt(best_h * 100) + " cm. ";
+  }
   tk::Table t({"case", "paper's experiment", "paper's simulation", "ours", "command that reproduced it"});
   std::vector<std::string> notes;
   t.add_row({"flat, μ = 0.82: average speed", "2.40 cm/s", "2.18 cm/s", cms(r.flat.v_high), "`pedalwave_paper flat`"});
@@ -786,9 +843,13 @@ std::string paper_table(const AllResult& r, std::size_t* rows) {
   notes.push_back("**Stair**: events as defined in stair.md (head on top: head tip touching the top face, within −" +
                   fmt(kOnTopBelow * 100) + " … +" + fmt(kOnTopAbove * 100) + " cm of its height; whole body past: every body point beyond the far "
                   "edge). Speeds: " + evidence(&SensitivityRow::stair_vkc, false) +
-                  " (k_c = 10.1). Our contact also tests the box's corners against the link segments, which the "
+                  " (k_c = 10.1). " + stuck(s0) + stuck(s1) + climbable +
+                  " Our contact also tests the box's corners against the link segments, which the "
                   "paper names as a remedy but whose use in its results it does not state; see the shape plots "
-                  "for what the body does at the box.");
+                  "(stair_shapes_*.svg, stair_film_*.svg) for what the body does at the box.");
+  std::string check_text;
+  for (const SweepCheck& c : sw.checks)
+    check_text += "; k_c = " + fmt(c.k_c) + ": " + cms(c.speed) + " → " + cms(c.speed_fine);
   t.add_row({"k_c sweep: best k_c (0 … 15 step 0.1)", "—", "10.1", fmt(best_k), "`pedalwave_paper sweep`"});
   t.add_row({"k_c sweep: best over k_c = 0", "—", "+24.8 %", pct(sw.gain) + " (" + cms(best_v) + " vs " + cms(sw.v0) + ")",
              "`pedalwave_paper sweep`"});
@@ -796,7 +857,7 @@ std::string paper_table(const AllResult& r, std::size_t* rows) {
   notes.push_back("**k_c sweep**: the optimum is the argmax of a speed curve that is itself sensitive to the "
                   "unpublished parameters (stair gain of k_c = 10.1: " + evidence(&SensitivityRow::stair_gain, true) +
                   "); the sweep's own integrator error is in sweep.md (re-runs at h = " + fmt(sw.options.check_h) +
-                  " s).");
+                  " s" + check_text + ").");
   t.add_row({"sweep wall time (151 × 60 s)", "—", "—",
              fmt(sw.wall_s, 3) + " s on " + std::to_string(sw.jobs) + " threads (RTF " + fmt(sw.realtime_factor, 3) + ")",
              "`pedalwave_paper sweep`"});

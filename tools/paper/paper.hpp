@@ -80,13 +80,21 @@ struct StairCase {
   double k_c = 0.0;
   RunResult run;                // with trace
 };
+// The same comparison over lower boxes: which height the robot can climb.
+struct StairHeight {
+  double height = 0.0;          // box height [m]
+  std::vector<double> speed;    // per k_c of StairResult::cases [m/s]
+  std::vector<double> t_body_past;  // per k_c: whole body past the box [s] (NaN = never)
+};
 struct StairResult {
   double duration = 0.0;        // [s]
   std::vector<StairCase> cases;
+  std::vector<StairHeight> heights;  // box-height scan (empty when not asked)
   std::string markdown;         // also out_dir/stair.md
 };
+// heights: box heights [m] for the scan (each run for every k_c, no trace); empty = none.
 StairResult stair(const Settings& s, double duration = 60.0, std::vector<double> k_c = {0.0, 10.1},
-                  double snapshot_every = 1.5);
+                  double snapshot_every = 1.5, std::vector<double> heights = {0.03, 0.04, 0.05, 0.06});
 
 // ---- sweep ---------------------------------------------------------------------------------------
 struct SweepOptions {
@@ -142,6 +150,7 @@ struct SensitivityRow {
   double peak_change = kNaN;   // friction [-]
   double stair_v0 = kNaN, stair_vkc = kNaN;         // stair k_c = 0 and k_c [m/s]
   double stair_gain = kNaN;    // stair_vkc / stair_v0 − 1 [-]
+  int peaks_before = 0, peaks_after = 0;            // friction: peaks on either side of the crossing
   double past0 = kNaN, pastkc = kNaN;               // whole body past the box [s] (NaN = never)
   double top0 = kNaN, topkc = kNaN;                 // head on top [s] (NaN = never)
 };

@@ -1,0 +1,247 @@
+// pedalwave_paper (tools/paper/): the engine in-process (peaks, grid, determinism of the parallel
+// sweep, the sweep's best against its own table) and the built executable end to end on short
+// runs (every subcommand's outputs, the comparison table's rows, finite numbers, bad input).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "experiments.hpp"
+#include "paper.hpp"
+#include "pedalwave/toolkit/csv.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace paper = pedalwave::paper;
+
+const std::string kExe = PEDALWAVE_PAPER_EXE;
+const fs::path kScenes = fs::path(PEDALWAVE_CONFIG_DIR) / "scenes";
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+class Paper : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() / ("pedalwave_paper_test_" + std::to_string(::getpid()) + "_" + info->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  paper::Settings settings(int jobs, const std::string& sub) {
+    paper::Settings s;
+    s.scenes_dir = kScenes;
+    s.out_dir = dir_ / sub;
+    s.jobs = jobs;
+    s.progress = false;
+    s.plots = false;
+    s.log = &log_;
+    return s;
+  }
+  struct Exit {
+    int code = -1;
+    std::string out, err;
+  };
+  Exit run_exe(const std::string& args) {
+    const fs::path o = dir_ / "stdout.txt", e = dir_ / "stderr.txt";
+    const std::string cmd = "'" + kExe + "' " + args + " >'" + o.string() + "' 2>'" + e.string() + "'";
+    const int status = std::system(cmd.c_str());
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, slurp(o), slurp(e)};
+  }
+  fs::path dir_;
+  std::ostringstream log_;
+};
+
+// ---- the engine ---------------------------------------------------------------------------------
+
+TEST(PaperPeaks, OnePerPeriodAtTheMinimaWithTheirValues) {
+  // y = −a_k sin(2π t / T) + 0.3 sin(6π t / T), amplitude a = 1 before t = 7 and 1.2 after: the
+  // minima of each period are where the derivative vanishes; compare against a fine search.
+  const double T = 2.0, dt = 1e-3;
+  std::vector<double> t, y;
+  for (int i = 0; i <= 14000; ++i) {
+    const double ti = i * dt;
+    const double a = ti < 7.0 ? 1.0 : 1.2;
+    t.push_back(ti);
+    y.push_back(-a * std::sin(2 * std::numbers::pi * ti / T) + 0.3 * std::sin(6 * std::numbers::pi * ti / T));
+  }
+  const auto idx = paper::negative_peaks(t, y, T);
+  // The true minima sit at 0.5 + 2k (the third harmonic is −0.3 there too: y = −a − 0.3); only
+  // full windows count, so the one at 0.5 (window reaching before t = 0) is left out: 2.5 … 12.5.
+  ASSERT_EQ(idx.size(), 6u);
+  for (std::size_t k = 0; k < idx.size(); ++k) {
+    const double tk = 2.5 + 2.0 * static_cast<double>(k);
+    EXPECT_NEAR(t[idx[k]], tk, 2e-3) << k;
+    const double a = tk < 7.0 ? 1.0 : 1.2;
+    EXPECT_NEAR(y[idx[k]], -a - 0.3, 1e-5) << k;
+  }
+  EXPECT_THROW((void)paper::negative_peaks({0.0, 1.0}, {0.0}, 1.0), std::invalid_argument);
+}
+
+TEST(PaperGrid, TheSweepGridHas151PointsWithExactTenths) {
+  const auto g = paper::sweep_grid(0.0, 15.0, 0.1);
+  ASSERT_EQ(g.size(), 151u);
+  EXPECT_EQ(g.front(), 0.0);
+  EXPECT_EQ(g.back(), 15.0);
+  EXPECT_EQ(g[101], 10.1);  // the paper's best is a grid point, exactly
+  EXPECT_EQ(g[3], 0.3);
+  EXPECT_THROW((void)paper::sweep_grid(0, 1, 0), std::invalid_argument);
+  EXPECT_THROW((void)paper::sweep_grid(2, 1, 0.1), std::invalid_argument);
+}
+
+TEST(PaperBest, ArgmaxIgnoresNonFiniteAndTakesTheFirstTie) {
+  std::vector<paper::SweepPoint> p(4);
+  p[0].speed = 0.01;
+  p[1].speed = std::nan("");
+  p[2].speed = 0.02;
+  p[3].speed = 0.02;
+  EXPECT_EQ(paper::best_index(p), 2u);
+  p[2].speed = p[3].speed = p[0].speed = std::nan("");
+  EXPECT_EQ(paper::best_index(p), p.size());
+}
+
+TEST(PaperParallel, RethrowsTheWorkersExceptionAndRunsEveryItemOnce) {
+  std::vector<int> hits(50, 0);
+  paper::parallel_for(hits.size(), 3, [&](std::size_t i) { hits[i] += 1; });
+  for (int h : hits) EXPECT_EQ(h, 1);
+  EXPECT_THROW(paper::parallel_for(10, 2, [](std::size_t i) { if (i == 4) throw std::runtime_error("x"); }),
+               std::runtime_error);
+}
+
+TEST_F(Paper, AdaptiveGainReachesTheControllerAndZeroKeepsTheNominalEta) {
+  paper::Settings s = settings(1, "eta");
+  paper::RunSpec spec;
+  spec.scene = paper::load(s, "stair");
+  spec.scene.duration = 3.0;
+  spec.integ = s.integ;
+  spec.sample_every = 0.05;
+  const paper::RunResult r0 = paper::run(spec);
+  spec.k_c = 10.1;
+  const paper::RunResult r1 = paper::run(spec);
+  ASSERT_EQ(r0.status, pedalwave::model::StepStatus::kOk);
+  ASSERT_EQ(r1.status, pedalwave::model::StepStatus::kOk);
+  double dev0 = 0, dev1 = 0;
+  for (double e : r0.trace.eta_head) dev0 = std::max(dev0, std::abs(e - spec.scene.gait.eta));
+  for (double e : r1.trace.eta_head) dev1 = std::max(dev1, std::abs(e - spec.scene.gait.eta));
+  EXPECT_EQ(dev0, 0.0);
+  EXPECT_GT(dev1, 1e-3);  // measured SEA torques of ~0.05 N·m move η by ~k_c Q_e / K_d
+  // The box is resolved ahead of the head and the speed average starts after one gait period.
+  EXPECT_NEAR(r0.avg_from, 2.0, 1e-12);
+  EXPECT_GT(r0.stair.x_far, r0.stair.x_near);
+  EXPECT_TRUE(std::isfinite(r0.avg_speed));
+}
+
+TEST_F(Paper, ParallelSweepGivesTheSameNumbersAsSerialAndItsBestIsItsTablesArgmax) {
+  paper::SweepOptions o;
+  o.from = 0.0;
+  o.to = 15.0;
+  o.step = 5.0;  // 0, 5, 10, 15
+  o.duration = 4.0;
+  o.checks = 1;
+  o.check_h = 5e-4;
+  const paper::SweepResult serial = paper::sweep(settings(1, "serial"), o);
+  const paper::SweepResult parallel = paper::sweep(settings(2, "parallel"), o);
+  ASSERT_EQ(serial.points.size(), 4u);
+  ASSERT_EQ(parallel.points.size(), serial.points.size());
+  for (std::size_t i = 0; i < serial.points.size(); ++i) {
+    EXPECT_EQ(serial.points[i].k_c, parallel.points[i].k_c);
+    EXPECT_TRUE(std::isfinite(serial.points[i].speed)) << i;
+    // Bit for bit: a run depends only on its spec, never on the thread.
+    EXPECT_EQ(serial.points[i].speed, parallel.points[i].speed) << "k_c = " << serial.points[i].k_c;
+    EXPECT_EQ(serial.points[i].stair.max_head_z, parallel.points[i].stair.max_head_z);
+  }
+  EXPECT_EQ(serial.best, parallel.best);
+  // The best is the argmax of the written table, and its gain is against the k_c = 0 row.
+  const auto csv = pedalwave::toolkit::CsvTable::read(dir_ / "parallel" / "sweep.csv");
+  const auto& k = csv.column("k_c");
+  const auto& v = csv.column("speed_m_s");
+  ASSERT_EQ(k.size(), 4u);
+  std::size_t arg = 0;
+  for (std::size_t i = 1; i < v.size(); ++i)
+    if (v[i] > v[arg]) arg = i;
+  EXPECT_EQ(k[arg], parallel.points[parallel.best].k_c);
+  EXPECT_DOUBLE_EQ(parallel.v0, v[0]);
+  EXPECT_DOUBLE_EQ(parallel.gain, v[arg] / v[0] - 1.0);
+  // The accuracy check re-ran k_c = 0 at the finer step: a different, finite, close number.
+  ASSERT_EQ(parallel.checks.size(), 1u);
+  EXPECT_EQ(parallel.checks[0].k_c, 0.0);
+  EXPECT_EQ(parallel.checks[0].speed, v[0]);
+  EXPECT_TRUE(std::isfinite(parallel.checks[0].speed_fine));
+  EXPECT_NEAR(parallel.checks[0].speed_fine, v[0], 5e-3);
+  EXPECT_NE(slurp(dir_ / "parallel" / "sweep.md").find("Best k_c = **"), std::string::npos);
+}
+
+// ---- the executable -----------------------------------------------------------------------------
+
+TEST_F(Paper, AllRunsEndToEndWithEveryTableRowAndFiniteNumbers) {
+  const fs::path out = dir_ / "all";
+  const Exit e = run_exe("all --out '" + out.string() + "' --scenes '" + kScenes.string() +
+                         "' --quiet --duration 4 --friction-duration 12 --from 0 --to 0.2 --step 0.1 --checks 1 "
+                         "--K 3 10 --I_r 5e-8");
+  ASSERT_EQ(e.code, 0) << e.err;
+  for (const char* f : {"paper_table.md", "paper.md", "flat.md", "friction.md", "stair.md", "sweep.md",
+                        "sensitivity.md", "sweep.csv", "flat_com.svg", "friction_torque.svg",
+                        "stair_shapes_kc0.svg", "stair_shapes_kc10.1.svg", "stair_film_kc0.svg",
+                        "stair_progress.svg", "sweep_speed.svg", "sensitivity_K.svg"})
+    EXPECT_TRUE(fs::exists(out / f)) << f;
+  const std::string table = slurp(out / "paper_table.md");
+  const std::vector<std::string> cases{
+      "flat, μ = 0.82: average speed", "flat, μ = 0.40: average speed", "speed gain μ = 0.82 over 0.40",
+      "SEA torque-peak change after the head enters μ = 0.40", "stair, k_c = 10.1: average speed (60 s)",
+      "stair, k_c = 0: average speed (60 s)", "stair, k_c = 10.1: climb", "stair, k_c = 0: climb",
+      "k_c sweep: best k_c (0 … 15 step 0.1)", "k_c sweep: best over k_c = 0",
+      "stair gain of k_c = 10.1 over k_c = 0", "sweep wall time (151 × 60 s)"};
+  std::size_t rows = 0;
+  std::istringstream lines(table);
+  for (std::string line; std::getline(lines, line);)
+    if (line.rfind("| ", 0) == 0) ++rows;
+  EXPECT_EQ(rows, cases.size() + 2) << table;  // + the header and the alignment row
+  for (const std::string& c : cases) {
+    const auto at = table.find("| " + c + " ");
+    ASSERT_NE(at, std::string::npos) << c;
+    const std::string row = table.substr(at, table.find('\n', at) - at);
+    EXPECT_EQ(row.find("nan"), std::string::npos) << row;
+    EXPECT_EQ(row.find("inf"), std::string::npos) << row;
+  }
+  // A sentence on every difference, and the printed numbers are finite.
+  for (const char* n : {"**Flat speed**", "**Friction speed gain**", "**Torque-peak change**", "**Stair**",
+                        "**k_c sweep**"})
+    EXPECT_NE(table.find(n), std::string::npos) << n;
+  EXPECT_NE(e.out.find("speed μ = 0.82: "), std::string::npos);
+  EXPECT_EQ(e.out.find("nan"), std::string::npos) << e.out;
+  EXPECT_EQ(e.out.find("STOPPED"), std::string::npos) << e.out;
+  // The sensitivity table has the baseline, K = 10 and the two model options.
+  const std::string sens = slurp(out / "sensitivity.md");
+  for (const char* r : {"| baseline", "| K [N·m/rad] | 10", "| friction at", "| v_s [m/s]"})
+    EXPECT_NE(sens.find(r), std::string::npos) << r;
+}
+
+TEST_F(Paper, BadInputExitsTwoWithOneLine) {
+  for (const std::string args : {"sweep --step 0", "flat --h 0.01", "flat --integrator magic",
+                                 "sensitivity --K 0", "sweep --from 3 --to 1", "nonsense"}) {
+    const Exit e = run_exe(args + " --quiet --out '" + (dir_ / "bad").string() + "'");
+    EXPECT_EQ(e.code, 2) << args << ": " << e.err;
+    EXPECT_NE(e.err.find("error"), std::string::npos) << args;
+    EXPECT_EQ(std::count(e.err.begin(), e.err.end(), '\n'), 1) << args << ": " << e.err;
+  }
+}
+
+}  // namespace

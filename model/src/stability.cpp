@@ -247,9 +247,15 @@ struct Analysis {
   Modes md;
 };
 
-Analysis analyse(const Scene& scene, const ControlGains& gains) {
+// without_friction: the friction slope left out (the "blow-up" limits, see MethodLimit::h_blowup).
+Analysis analyse(const Scene& scene, const ControlGains& gains, bool without_friction = false) {
   Analysis a;
   a.lin = linearize(scene, gains);
+  if (without_friction) {
+    a.lin.K[idx(Effect::kFriction)].setZero();
+    a.lin.D[idx(Effect::kFriction)].setZero();
+    a.lin.present[idx(Effect::kFriction)] = false;
+  }
   const int n = static_cast<int>(a.lin.M.rows());
   MatrixXd K = MatrixXd::Zero(n, n), D = MatrixXd::Zero(n, n);
   for (int e = 0; e < kEffectCount; ++e) {
@@ -412,15 +418,29 @@ StabilityReport predict_stability(const Scene& scene, const ControlGains& gains)
   r.rate_max = max_generalized(D, lin.M);
 
   const Modes& md = a.md;
-  r.euler = make_limit(Method::kExplicitEuler, lin, md, binding(md, euler_mode_limit));
-  r.rk4 = make_limit(Method::kRK4, lin, md,
-                     binding(md, [](cd l) { return ray_limit(R_rk4, l / std::abs(l)) / std::abs(l); }));
-  r.dopri = make_limit(Method::kDormandPrince45, lin, md, binding(md, [](cd l) {
-                         return ray_limit(R_dopri, l / std::abs(l)) / std::abs(l);
-                       }));
-  const Binding si = binding(md, si_mode_limit);
-  r.semi_implicit = make_limit(Method::kSemiImplicitEuler, lin, md, si);
-  r.semi_implicit.h_max = si_limit(a, si);
+  auto limits = [](const Analysis& an, StabilityReport& out) {
+    const Modes& mm = an.md;
+    out.euler = make_limit(Method::kExplicitEuler, an.lin, mm, binding(mm, euler_mode_limit));
+    out.rk4 = make_limit(Method::kRK4, an.lin, mm, binding(mm, [](cd l) {
+                           return ray_limit(R_rk4, l / std::abs(l)) / std::abs(l);
+                         }));
+    out.dopri = make_limit(Method::kDormandPrince45, an.lin, mm, binding(mm, [](cd l) {
+                             return ray_limit(R_dopri, l / std::abs(l)) / std::abs(l);
+                           }));
+    const Binding si = binding(mm, si_mode_limit);
+    out.semi_implicit = make_limit(Method::kSemiImplicitEuler, an.lin, mm, si);
+    out.semi_implicit.h_max = si_limit(an, si);
+  };
+  limits(a, r);
+  // Friction's slope only acts inside the stick band |v_t| < v_s; above its limit an explicit
+  // scheme chatters there with bounded amplitude. The limit without it is where runs blow up.
+  StabilityReport hard = r;
+  if (lin.present[idx(Effect::kFriction)]) limits(analyse(scene, gains, true), hard);
+  for (auto [mine, other] : {std::pair{&r.euler, &hard.euler}, {&r.semi_implicit, &hard.semi_implicit},
+                             {&r.rk4, &hard.rk4}, {&r.dopri, &hard.dopri}}) {
+    mine->h_blowup = std::max(mine->h_max, other->h_max);
+    mine->blowup_dominant = mine->h_blowup > mine->h_max ? other->dominant : mine->dominant;
+  }
   for (Eigen::Index i = 0; i < md.lambda.size(); ++i)
     if (!zero_mode(md.lambda(i), md.scale) && undamped(md.lambda(i)))
       r.euler_undamped_omega = std::max(r.euler_undamped_omega, std::abs(md.lambda(i)));
@@ -495,7 +515,13 @@ std::string stability_message(const StabilityReport& r, Method method, double h)
        << ") grows by √(1 + h²ω²) per step; use semi_implicit_euler, rk4 or implicit_velocity";
     return os.str();
   }
-  if (h > ml.h_max) {
+  if (h > ml.h_max && h <= ml.h_blowup) {
+    os << "h = " << fmt(h) << " s is above " << name << "'s stability limit " << fmt(ml.h_max)
+       << " s set by " << mode_phrase(r, ml) << ": inside the stick band |v_t| < v_s it chatters "
+       << "(bounded, inaccurate); it blows up above " << fmt(ml.h_blowup) << " s (" 
+       << to_string(ml.blowup_dominant) << "): use h ≤ " << fmt(suggest(ml.h_max), 2)
+       << " s, or implicit_velocity";
+  } else if (h > ml.h_max) {
     os << "h = " << fmt(h) << " s is above " << name << "'s stability limit " << fmt(ml.h_max)
        << " s set by " << mode_phrase(r, ml) << ": use h ≤ " << fmt(suggest(ml.h_max), 2)
        << " s, or implicit_velocity";
@@ -523,6 +549,11 @@ StabilityCheck check(const Scene& scene, const ControlGains& gains, const Integr
   if (integ.h <= c.h_limit) {
     c.level = CheckLevel::kWarning;
     c.message += "; within 20 % of the limit: contact onset or other poses may push it over";
+  } else if (integ.h <= c.report.limit(m).h_blowup) {
+    // Above a friction-set limit only: bounded chatter inside the stick band.
+    c.level = CheckLevel::kWarning;
+    c.message += "; above it the friction chatters inside |v_t| < v_s (bounded, but it adds error); "
+                 "runs blow up above " + fmt(c.report.limit(m).h_blowup) + " s";
   } else {
     c.level = c.growth >= 10.0 ? CheckLevel::kError : CheckLevel::kWarning;
     c.message += "; the worst mode grows ×" + fmt(c.growth, 2) + " over " + fmt(duration) + " s";

@@ -112,6 +112,13 @@ double estimate(const RunSpec& s) {
   return s.duration / s.integ.h * stages;
 }
 
+std::string limit_text(const std::string& name, const model::MethodLimit& l) {
+  std::string t = name + " " + num(l.h_max) + " s (" + model::to_string(l.dominant) + ")";
+  if (l.h_blowup > l.h_max)
+    t += ", blow-up " + num(l.h_blowup) + " s (" + model::to_string(l.blowup_dominant) + ")";
+  return t;
+}
+
 model::IntegratorOptions dopri(double rtol) {
   return {.method = model::Method::kDormandPrince45, .h = 1e-5, .rtol = rtol, .atol = rtol * 1e-2,
           .h_min = 1e-15, .h_max = 1e-3};
@@ -278,10 +285,10 @@ int work_precision(const Options& opt) {
        << num(opt.ref_rtol, 2) << " it differs by " << num(ref_err.com_max) << " m (COM, max) and "
        << num(ref_err.alpha_max) << " rad (α, max) — an upper bound on the reference's own error.\n\n"
        << "Predicted stability limits (model/stability.hpp, K_p = " << gains.K_p << ", K_D = " << gains.K_D
-       << "): explicit Euler " << num(pred.euler.h_max) << " s (" << model::to_string(pred.euler.dominant)
-       << "), semi-implicit Euler " << num(pred.semi_implicit.h_max) << " s ("
-       << model::to_string(pred.semi_implicit.dominant) << "), RK4 " << num(pred.rk4.h_max) << " s ("
-       << model::to_string(pred.rk4.dominant) << "), dopri45 ≈ " << num(pred.dopri.h_max) << " s.\n\n"
+       << "): " << limit_text("explicit Euler", pred.euler) << ", "
+       << limit_text("semi-implicit Euler", pred.semi_implicit) << ", " << limit_text("RK4", pred.rk4)
+       << "; dopri45's steps are held near " << num(pred.dopri.h_max) << " s. (Friction-set limits are "
+       << "soft: above them the stick band chatters, runs blow up above the second value.)\n\n"
        << t.to_markdown() << "\n";
     if (cheapest) {
       md << "Cheapest within 1 mm max COM error: **" << method_label(cheapest->spec.integ.method) << ", "

@@ -184,6 +184,29 @@ TEST(StabilityPrediction, MessageNamesTheEffectAndTheFix) {
   EXPECT_EQ(imp.level, CheckLevel::kOk) << imp.message;
 }
 
+// Friction's slope sets the shipped ground scenes' limits, but only inside the stick band: above
+// it a run chatters with bounded amplitude (the work-precision study runs RK4 at 5e-4 s > 3.46e-4 s
+// for 10 s in closed loop with 1.3 mm error); it blows up above the limit without friction, the
+// motor damping's. check() warns in between and refuses above.
+TEST(StabilityPrediction, FrictionLimitIsSoft) {
+  Scene s = flat_ground();
+  const StabilityReport r = predict_stability(s, {30.0, 15.0});
+  EXPECT_EQ(r.rk4.dominant, Effect::kFriction);
+  EXPECT_EQ(r.rk4.blowup_dominant, Effect::kMotorPd);
+  const double J = s.robot.n * s.robot.n * s.robot.I_r;
+  EXPECT_NEAR(r.rk4.h_blowup, 2.785 * J / 15.0, 0.01 * 2.785 * J / 15.0);
+  EXPECT_LT(r.rk4.h_max, r.rk4.h_blowup);
+  const StabilityCheck soft = check(s, {30.0, 15.0}, {.method = Method::kRK4, .h = 5e-4}, 10.0);
+  EXPECT_EQ(soft.level, CheckLevel::kWarning) << soft.message;
+  EXPECT_NE(soft.message.find("chatters"), std::string::npos) << soft.message;
+  const StabilityCheck hard = check(s, {30.0, 15.0}, {.method = Method::kRK4, .h = 7e-4}, 10.0);
+  EXPECT_EQ(hard.level, CheckLevel::kError) << hard.message;
+  // Blow-up confirmed on both sides of h_blowup (perturbation far above v_s: sliding contacts).
+  EXPECT_LT(run(s, {30.0, 15.0}, Method::kRK4, 0.8 * r.rk4.h_blowup, 0.2, 1e-5).max_ratio, 1e4);
+  const Outcome above = run(s, {30.0, 15.0}, Method::kRK4, 1.25 * r.rk4.h_blowup, 0.2, 1e-5);
+  EXPECT_TRUE(above.non_finite || above.max_ratio >= 1e4) << above.max_ratio;
+}
+
 // Open loop in the air (the free-fall scene without PD): every SEA mode is undamped, so explicit
 // Euler's amplitude grows by √(1 + h²ω²) per step — ×e^{½ h ω² t}: ~4000× in 1 s at h = 1e-4.
 TEST(StabilityPrediction, ExplicitEulerOnUndampedModesIsRefused) {

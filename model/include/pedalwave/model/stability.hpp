@@ -78,6 +78,12 @@ struct MethodLimit {
   Effect dominant = Effect::kMotorPd;  // effect that sets h_max (meaningless when kNoLimit)
   double mode_omega = 0.0;   // |λ| of the binding mode [rad/s]
   double mode_damping = 0.0; // its damping ratio −Re λ / |λ| [-]
+  // Regularized friction's slope μ f_N / v_s only exists inside the stick band |v_t| < v_s: above
+  // a friction-set h_max an explicit scheme chatters there with bounded amplitude (≈ v_s) instead
+  // of blowing up. h_blowup is the limit with friction left out — where runs do diverge — and
+  // equals h_max when friction does not set it.
+  double h_blowup = kNoLimit;            // [s]
+  Effect blowup_dominant = Effect::kMotorPd;  // effect that sets h_blowup
 };
 
 struct StabilityReport {
@@ -120,8 +126,9 @@ std::string stability_message(const StabilityReport& report, Method method, doub
 // What a tool should do before a run.
 enum class CheckLevel : std::uint8_t {
   kOk,       // fixed step below 0.8 × the limit (or an implicit/adaptive method)
-  kWarning,  // within 0.8 … 1 × the limit, or above it but growing less than ×10 over the run
-  kError,    // above the limit, with predicted growth ≥ ×10 over the run: refuse
+  kWarning,  // within 0.8 … 1 × the limit; above a friction-set limit but below h_blowup
+             // (bounded chatter); or above the limit but growing less than ×10 over the run
+  kError,    // above the limit (and h_blowup), with predicted growth ≥ ×10 over the run: refuse
 };
 const char* to_string(CheckLevel l);
 

@@ -23,6 +23,10 @@ Plant::Plant(const Scene& scene)
     *x = VectorXd::Zero(J);
   u_ = VectorXd::Zero(J);
   Q_ = VectorXd::Zero(n);
+  faults_.torque_gain = VectorXd::Ones(J);
+  faults_.motor_friction = VectorXd::Zero(J);
+  faults_.spring_scale = VectorXd::Ones(J);
+  faults_.joint_load = VectorXd::Zero(J);
   Ja_ = MatrixXd::Zero(2, n);
   Jb_ = MatrixXd::Zero(2, n);
   jn_ = Eigen::RowVectorXd::Zero(n);
@@ -249,7 +253,30 @@ void Plant::motor_torques(const VectorXd& q, const VectorXd& v, Eigen::Ref<Vecto
       uj = input_.tau(j) + input_.kp(j) * (input_.beta_ref(j) - beta) +
            input_.kd(j) * (input_.beta_dot_ref(j) - beta_dot);
     if (lim > 0) uj = std::clamp(uj, -lim, lim);
-    u(j) = uj - b * beta_dot;
+    // Injected faults: output gain, extra motor friction (healthy: × 1, + 0, bit-identical).
+    u(j) = faults_.torque_gain(j) * uj - (b + faults_.motor_friction(j)) * beta_dot;
+  }
+}
+
+void Plant::fault_forces(const VectorXd& q, Eigen::Ref<VectorXd> Q, ImplicitTerms* jac) const {
+  const Model& m = model_;
+  for (int j = 0; j < m.joints(); ++j) {
+    const int a = m.i_alpha(j);
+    // Joint load: a link-side torque between links j and j+1 acts on α_j alone.
+    if (faults_.joint_load(j) != 0.0) Q(a) += faults_.joint_load(j);
+    // Spring stiffness change: the extra spring (s − 1) K between β_j and α_j.
+    const double dK = (faults_.spring_scale(j) - 1.0) * m.K()(j);
+    if (!m.flexible() || dK == 0.0) continue;
+    const int b = m.i_beta(j);
+    const double f = dK * (q(b) - q(a));
+    Q(b) -= f;
+    Q(a) += f;
+    if (jac) {
+      jac->dFdq(a, a) -= dK;
+      jac->dFdq(b, b) -= dK;
+      jac->dFdq(a, b) += dK;
+      jac->dFdq(b, a) += dK;
+    }
   }
 }
 
@@ -259,6 +286,7 @@ bool Plant::acceleration(double, const VectorXd& q, const VectorXd& v, VectorXd&
   motor_torques(q, v, u_);
   Q_.setZero();
   contact_forces(q, v, Q_, nullptr, nullptr);
+  fault_forces(q, Q_, nullptr);
   compute_mass_matrix(m, data_);
   if (!data_.mass_valid) return false;
   compute_bias(m, data_, q);
@@ -276,6 +304,7 @@ bool Plant::implicit_terms(double, const VectorXd& q, const VectorXd& v, Implici
   out.dFdv.setZero();
   Q_.setZero();
   contact_forces(q, v, Q_, &out, nullptr);
+  fault_forces(q, Q_, &out);
   compute_mass_matrix(m, data_);
   if (!data_.mass_valid) return false;
   compute_bias(m, data_, q);
@@ -294,17 +323,22 @@ bool Plant::implicit_terms(double, const VectorXd& q, const VectorXd& v, Implici
       out.dFdq(b, a) += K;
     }
   }
-  // Module PD and joint friction (zero slope where the torque limit is active).
+  // Module PD and joint friction (zero slope where the torque limit is active), through the
+  // injected output gain and extra friction (healthy: × 1, + 0).
   const double bm = scene_.joint_friction_on ? scene_.joint_friction.motor_viscous : 0.0;
   const double lim = scene_.torque_limit_on ? scene_.torque_limit.u_max : 0.0;
   for (int j = 0; j < m.joints(); ++j) {
     const int r = first + j;
-    const bool saturated = lim > 0 && std::abs(u_(j) + bm * v(r)) >= lim;
+    const double bj = bm + faults_.motor_friction(j);
+    const double gain = faults_.torque_gain(j);
+    // The limited law value: undo the gain and friction of u_ (exact when the gain is 1).
+    const double law = gain == 1.0 ? u_(j) + bj * v(r) : (u_(j) + bj * v(r)) / gain;
+    const bool saturated = lim > 0 && gain != 0.0 && std::abs(law) >= lim;
     if (!input_.torque_off && !saturated) {
-      out.dFdq(r, r) -= input_.kp(j);
-      out.dFdv(r, r) -= input_.kd(j);
+      out.dFdq(r, r) -= gain * input_.kp(j);
+      out.dFdv(r, r) -= gain * input_.kd(j);
     }
-    out.dFdv(r, r) -= bm;
+    out.dFdv(r, r) -= bj;
   }
   return true;
 }

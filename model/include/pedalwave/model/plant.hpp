@@ -30,6 +30,29 @@ struct Measurement {
   VectorXd deflection;  // β − α [rad]
 };
 
+// Physical faults injected into the simulated actuators (fault-injection studies, the observer's
+// proof). Sized (N-1) by the Plant; the defaults are the healthy robot and leave every result
+// bit-identical. Applied in motor_torques() and as extra generalized forces in acceleration() and
+// implicit_terms():
+//   u_j = torque_gain_j · (module law, limited) − (b_m + motor_friction_j) β̇_j   (motor rows)
+//   spring: extra −(spring_scale_j − 1) K_j (β_j − α_j) on the β_j row, + the same on the α_j row
+//   joint_load: extra generalized force +joint_load_j on the α_j row (a link-side torque between
+//               links j and j+1: a jam, a snag, a payload)
+// Change them between plant steps only (the integrators assume a smooth right-hand side).
+struct PlantFaults {
+  VectorXd torque_gain;     // actuator output gain [-], (N-1); 1 = healthy, 0 = torque loss
+  VectorXd motor_friction;  // extra viscous friction on the motor [N·m·s/rad], (N-1); 0 = healthy
+  VectorXd spring_scale;    // SEA stiffness factor [-], (N-1); 1 = healthy, 0.2 = broken spring
+  VectorXd joint_load;      // extra link-side torque on α_j [N·m], (N-1); 0 = healthy
+  // Back to the healthy robot (keeps the sizes).
+  void clear() {
+    torque_gain.setOnes();
+    motor_friction.setZero();
+    spring_scale.setOnes();
+    joint_load.setZero();
+  }
+};
+
 // Contact state of one evaluation, for output and plots.
 struct ContactReport {
   VectorXd f_normal;      // normal force per body point [N], (2N+1)
@@ -52,11 +75,15 @@ class Plant final : public System {
 
   ActuatorInput& input() { return input_; }
   const ActuatorInput& input() const { return input_; }
+  // Injected physical faults (healthy by default; see PlantFaults).
+  PlantFaults& faults() { return faults_; }
+  const PlantFaults& faults() const { return faults_; }
 
   bool acceleration(double t, const VectorXd& q, const VectorXd& v, VectorXd& a) override;
   bool implicit_terms(double t, const VectorXd& q, const VectorXd& v, ImplicitTerms& out) override;
 
-  // Motor torques u (N-1) the actuators apply at (q, v): input law, joint friction, limits.
+  // Motor torques u (N-1) the actuators apply at (q, v): input law, limits, fault gain, joint
+  // friction (nominal + injected).
   void motor_torques(const VectorXd& q, const VectorXd& v, Eigen::Ref<VectorXd> u) const;
   // Generalized contact force at (q, v) (needs update_kinematics on data()).
   void contact_forces(const VectorXd& q, const VectorXd& v, Eigen::Ref<VectorXd> Q,
@@ -75,6 +102,9 @@ class Plant final : public System {
 
  private:
   double mu_at(double x) const;
+  // Generalized forces of the injected spring and joint-load faults, added to Q (nq); with
+  // jac, also their stiffness (spring) on dFdq. Nothing when the faults are healthy.
+  void fault_forces(const VectorXd& q, Eigen::Ref<VectorXd> Q, ImplicitTerms* jac) const;
   // Friction force along the tangent for normal force fN, tangential velocity vt; dfdv its
   // derivative wrt vt (for implicit schemes). slot ≥ 0 selects a stick–slip anchor.
   double friction(double mu, double fN, double vt, double xt, int slot, double& dfdv) const;
@@ -86,6 +116,7 @@ class Plant final : public System {
   Model model_;
   Data data_;
   ActuatorInput input_;
+  PlantFaults faults_;
   VectorXd u_, Q_;
   MatrixXd Ja_, Jb_;
   Eigen::RowVectorXd jn_, jt_;

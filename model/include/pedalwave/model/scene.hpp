@@ -3,8 +3,10 @@
 #pragma once
 
 #include <cstdint>
+#include <iterator>
 #include <limits>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "pedalwave/model/integrators.hpp"
@@ -88,6 +90,61 @@ struct GaitParams {
   double eta = -1.2566370614359172;  // spatial frequency [rad] (−2π/5)
 };
 
+// An injected fault (scene `faults:` list; config/scenes/README.md). The physical ones act on the
+// Plant (PlantFaults), the others on the driver's Feedback; both are applied by
+// drivers::FaultInjectingDriver from t_start on (a plain SimDriver ignores the list).
+enum class FaultType : std::uint8_t {
+  // Physical (model::PlantFaults)
+  kTorqueGain,       // actuator output gain := value [-] (0 = torque loss)
+  kMotorFriction,    // extra viscous motor friction := value [N·m·s/rad]
+  kSpringScale,      // SEA stiffness factor := value [-] (0.2 = broken spring)
+  kJointLoad,        // link-side torque on α_j := value [N·m] (a jam/snag: torque saturation)
+  // Sensors and communication (drivers::Feedback)
+  kEncoderStuck,     // β_j frozen at its last value, β̇_j reported 0
+  kEncoderOffset,    // β_j += value [rad] (offset jump)
+  kEncoderNoise,     // β_j += N(0, value²) [rad] for `duration` (noise burst)
+  kDeflectionStuck,  // deflection_j frozen at its last value
+  kDeflectionBias,   // deflection_j += value [rad]
+  kDeflectionScale,  // deflection_j *= value [-]
+  kNaN,              // deflection_j = NaN
+  kImplausible,      // β_j := value [rad] (out of range)
+  kModuleSilent,     // joint j: kStatusMissing, values frozen (the module stopped answering)
+  kStale,            // joint j: the values of `value` cycles ago (1…15), kStatusStale
+  kOutOfOrder,       // joint j: every other cycle the values of 2 cycles ago, kStatusOutOfOrder
+  kRepeatedFrame,    // every other cycle the whole previous frame again, same seq (joint ignored)
+  kCount
+};
+
+inline constexpr std::string_view kFaultTypeNames[] = {
+    "torque_gain",     "motor_friction",   "spring_scale",     "joint_load",
+    "encoder_stuck",   "encoder_offset",   "encoder_noise",    "deflection_stuck",
+    "deflection_bias", "deflection_scale", "nan",              "implausible",
+    "module_silent",   "stale",            "out_of_order",     "repeated_frame"};
+static_assert(std::size(kFaultTypeNames) == static_cast<std::size_t>(FaultType::kCount));
+
+inline std::string_view to_string(FaultType f) {
+  const auto i = static_cast<std::size_t>(f);
+  return i < std::size(kFaultTypeNames) ? kFaultTypeNames[i] : "?";
+}
+// false if `name` is not one of kFaultTypeNames.
+inline bool parse_fault_type(std::string_view name, FaultType& out) {
+  for (std::size_t i = 0; i < std::size(kFaultTypeNames); ++i)
+    if (kFaultTypeNames[i] == name) {
+      out = static_cast<FaultType>(i);
+      return true;
+    }
+  return false;
+}
+inline bool is_physical(FaultType f) { return f <= FaultType::kJointLoad; }
+
+struct FaultSpec {
+  FaultType type = FaultType::kTorqueGain;
+  int joint = 0;          // 0-based joint j, 0 … N-2 (kRepeatedFrame: ignored) [-]
+  double t_start = 0.0;   // onset, time since the run started [s]
+  double value = 0.0;     // magnitude, unit per type (FaultType) [-, rad, N·m, N·m·s/rad]
+  double duration = std::numeric_limits<double>::infinity();  // active for this long [s]
+};
+
 struct Scene {
   std::string name = "unnamed";
   std::string source;  // file it came from (for messages)
@@ -105,6 +162,7 @@ struct Scene {
   GaitParams gait;
   double duration = 10.0;  // [s]
   IntegratorOptions integrator{.method = Method::kImplicitVelocity, .h = 1e-4};
+  std::vector<FaultSpec> faults;  // injected faults (applied by drivers::FaultInjectingDriver)
 };
 
 // Throws std::invalid_argument naming scene.<key>, its value and what was expected.

@@ -1,0 +1,455 @@
+#include "pedalwave/observer/fault_observer.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+#include "body_model.hpp"
+
+namespace pedalwave::observer {
+
+using drivers::Command;
+using drivers::Feedback;
+
+namespace {
+constexpr std::size_t idx(FaultClass c) { return static_cast<std::size_t>(c); }
+int rank(Severity s) { return static_cast<int>(s); }
+
+// Static evidence texts (the Verdict's text must outlive the cycle).
+const char* text_of(FaultClass c) {
+  switch (c) {
+    case FaultClass::kActuatorTorque: return "observer: motor residual ~ u: actuator torque gain/loss";
+    case FaultClass::kMotorFriction: return "observer: motor residual ~ beta_dot: motor friction";
+    case FaultClass::kEncoderStuck: return "observer: motor encoder stuck (beta frozen while commanded to move)";
+    case FaultClass::kEncoderJump: return "observer: motor encoder offset jump (beta vs beta_dot spike)";
+    case FaultClass::kEncoderNoise: return "observer: motor encoder noise burst (beta vs beta_dot spikes)";
+    case FaultClass::kDeflectionStuck: return "observer: deflection sensor stuck (frozen while the motor moves)";
+    case FaultClass::kDeflectionBias: return "observer: motor residual constant: deflection sensor bias";
+    case FaultClass::kDeflectionScale: return "observer: motor residual ~ deflection: deflection scale error";
+    case FaultClass::kSpringBroken: return "observer: motor residual ~ deflection, >50%: spring stiffness lost";
+    case FaultClass::kModuleSilent: return "observer: module not answering (missing frames)";
+    case FaultClass::kStaleData: return "observer: stale / out-of-order data";
+    case FaultClass::kImplausible: return "observer: NaN or out-of-range measurement";
+    case FaultClass::kSaturation: return "observer: persistent torque saturation";
+    default: return "observer fault";
+  }
+}
+}  // namespace
+
+// Per-joint state (everything a cycle writes).
+struct FaultObserver::Joint {
+  // Previous valid sample
+  bool prev_valid = false;
+  double beta = 0, beta_dot = 0, defl = 0;
+  // Residual regressors filtered like r: [u, K·deflection, β̇, 1]
+  std::array<double, 4> phi{};
+  // Classification window
+  bool classifying = false;
+  double t0 = 0;
+  int n = 0, above = 0;
+  double peak = 0;
+  Eigen::Matrix4d G = Eigen::Matrix4d::Zero();
+  Eigen::Vector4d g = Eigen::Vector4d::Zero();
+  // Checks
+  int missing_run = 0;
+  std::uint64_t stale_hist = 0;
+  int hold_beta = 0, hold_defl = 0, hold_rate = 0;
+  double ref_min = 0, ref_max = 0, beta_min = 0, beta_max = 0, rate_int = 0;
+  int spike_wait = 0, spikes = 0;
+  double spike_value = 0;
+  double prev_ref_rate = 0;  // β̇_ref of the previous command [rad/s]
+  int cmd_settle = 0;        // cycles left without consistency checks after a command step
+  // Link-side filters: α (2nd order: α_f, α̇_f, α̈_f), β̇ (1st order → β̈_f)
+  bool filt_init = false;
+  double af = 0, afd = 0, afdd = 0, bdf = 0, bdd = 0;
+};
+
+ObserverParams observer_params(const model::Scene& scene, double period) {
+  ObserverParams p;
+  p.robot = scene.robot;
+  p.period = period;
+  p.motor_viscous = scene.joint_friction_on ? scene.joint_friction.motor_viscous : 0.0;
+  p.u_max = scene.torque_limit_on ? scene.torque_limit.u_max : 0.0;
+  p.body_model = scene.ground_on;
+  p.ground = scene.ground;
+  p.ground.patches.clear();
+  return p;
+}
+
+void validate(const ObserverParams& p) {
+  auto fail = [](const char* key, double v, const char* expected) {
+    throw std::invalid_argument(std::string("observer parameter ") + key + " = " +
+                                std::to_string(v) + ": " + expected);
+  };
+  model::validate(p.robot);
+  if (p.robot.joints != model::JointModel::kFlexible)
+    fail("robot.joints", 0, "flexible (the observer's residuals need the SEA deflection)");
+  if (p.robot.N - 1 > kMaxJoints) fail("robot.N", p.robot.N, "at most kMaxLinks");
+  auto pos = [&](const char* k, double v) {
+    if (!std::isfinite(v) || !(v > 0)) fail(k, v, "a finite number > 0");
+  };
+  auto nonneg = [&](const char* k, double v) {
+    if (!std::isfinite(v) || v < 0) fail(k, v, "a finite number >= 0");
+  };
+  pos("period", p.period);
+  nonneg("motor_viscous", p.motor_viscous);
+  nonneg("u_max", p.u_max);
+  nonneg("settle", p.settle);
+  pos("command_step", p.command_step);
+  if (p.command_settle < 0) fail("command_settle", p.command_settle, ">= 0");
+  pos("K_O", p.K_O);
+  pos("r_threshold", p.r_threshold);
+  pos("t_classify", p.t_classify);
+  if (!(p.persist_fraction >= 0 && p.persist_fraction <= 1)) fail("persist_fraction", p.persist_fraction, "in [0, 1]");
+  pos("spring_broken", p.spring_broken);
+  pos("beta_max", p.beta_max);
+  pos("beta_dot_max", p.beta_dot_max);
+  pos("deflection_max", p.deflection_max);
+  if (p.missing_cycles < 1) fail("missing_cycles", p.missing_cycles, ">= 1");
+  if (p.stale_window < 1 || p.stale_window > 64) fail("stale_window", p.stale_window, "1 … 64 cycles");
+  if (p.stale_count < 1 || p.stale_count > p.stale_window) fail("stale_count", p.stale_count, "1 … stale_window");
+  if (p.hold_cycles < 2) fail("hold_cycles", p.hold_cycles, ">= 2");
+  if (p.hold_cycles_deflection < 2) fail("hold_cycles_deflection", p.hold_cycles_deflection, ">= 2");
+  pos("hold_motion", p.hold_motion);
+  pos("consistency_threshold", p.consistency_threshold);
+  if (p.jump_window < 1) fail("jump_window", p.jump_window, ">= 1");
+  if (p.noise_spikes < 1) fail("noise_spikes", p.noise_spikes, ">= 1");
+  if (!(p.saturation_fraction > 0 && p.saturation_fraction < 1)) fail("saturation_fraction", p.saturation_fraction, "in (0, 1)");
+  pos("saturation_tau", p.saturation_tau);
+  pos("accel_filter_hz", p.accel_filter_hz);
+  pos("speed_tau", p.speed_tau);
+}
+
+FaultObserver::FaultObserver(const ObserverParams& p) : p_(p) {
+  validate(p_);
+  joints_ = p_.robot.N - 1;
+  J_ = p_.robot.n * p_.robot.n * p_.robot.I_r;
+  for (int j = 0; j < joints_; ++j) K_[static_cast<std::size_t>(j)] = p_.robot.stiffness(j);
+  jt_ = std::make_unique<Joint[]>(static_cast<std::size_t>(joints_));
+  if (p_.body_model) body_model_ = std::make_unique<BodyModel>(p_.robot, p_.ground);
+  reset();
+}
+
+FaultObserver::~FaultObserver() = default;
+
+void FaultObserver::reset() {
+  for (int j = 0; j < joints_; ++j) jt_[static_cast<std::size_t>(j)] = Joint{};
+  r_.fill(0.0);
+  tau_ext_.fill(0.0);
+  c_.fill(0.0);
+  sat_lp_.fill(0.0);
+  body_.fill(0.0);
+  speed_ = 0.0;
+  elapsed_ = 0.0;
+  have_prev_frame_ = false;
+  prev_seq_ = 0;
+  frame_stale_hist_ = 0;
+  n_latched_ = 0;
+  primary_ = nullptr;
+  flags_ = 0;
+  if (body_model_) body_model_->reset();
+}
+
+bool FaultObserver::joint_latched(int j) const {
+  for (int i = 0; i < n_latched_; ++i)
+    if (latched_[static_cast<std::size_t>(i)].joint == j) return true;
+  return false;
+}
+
+void FaultObserver::latch(FaultClass c, int joint, double t, double value, double threshold,
+                          double estimate) {
+  // One record per (class, joint); the first one wins.
+  for (int i = 0; i < n_latched_; ++i) {
+    const FaultRecord& f = latched_[static_cast<std::size_t>(i)];
+    if (f.fault == c && f.joint == joint) return;
+  }
+  if (n_latched_ >= static_cast<int>(latched_.size())) return;
+  FaultRecord& f = latched_[static_cast<std::size_t>(n_latched_++)];
+  f.fault = c;
+  f.severity = p_.severity[idx(c)];
+  f.joint = static_cast<std::int16_t>(joint);
+  f.t = t;
+  f.value = value;
+  f.threshold = threshold;
+  f.estimate = estimate;
+  f.text = text_of(c);
+  flags_ |= 1u << static_cast<unsigned>(c);
+  if (primary_ == nullptr || rank(f.severity) > rank(primary_->severity)) primary_ = &f;
+}
+
+// Frame level: the driver's seq must increase (a repeated or backward seq is stale data).
+// Returns through frame_ok_ whether this frame may feed the residuals.
+void FaultObserver::check_frame(const Feedback& fb, double t) {
+  frame_ok_ = true;
+  if (have_prev_frame_ && fb.seq <= prev_seq_) frame_ok_ = false;
+  const std::uint64_t mask = p_.stale_window >= 64 ? ~0ull : ((1ull << p_.stale_window) - 1);
+  frame_stale_hist_ = ((frame_stale_hist_ << 1) | (frame_ok_ ? 0u : 1u)) & mask;
+  const int n = std::popcount(frame_stale_hist_);
+  if (n >= p_.stale_count)
+    latch(FaultClass::kStaleData, -1, t, n, p_.stale_count, 0.0);
+  if (frame_ok_ || !have_prev_frame_) prev_seq_ = fb.seq;
+  have_prev_frame_ = true;
+}
+
+// Data validity of joint j this cycle: plausibility, missing, stale. false = do not integrate.
+bool FaultObserver::check_joint(const Feedback& fb, int j, double t) {
+  const auto k = static_cast<std::size_t>(j);
+  Joint& s = jt_[k];
+  const double b = fb.beta[k], bd = fb.beta_dot[k], d = fb.deflection[k];
+  const std::uint16_t st = fb.status[k];
+  // Missing: the module did not answer this cycle (values are the driver's stale copy).
+  if (st & drivers::kStatusMissing) {
+    if (++s.missing_run >= p_.missing_cycles)
+      latch(FaultClass::kModuleSilent, j, t, s.missing_run, p_.missing_cycles, 0.0);
+    return false;
+  }
+  s.missing_run = 0;
+  // Stale / out of order, counted over a sliding window.
+  const bool stale = (st & (drivers::kStatusStale | drivers::kStatusOutOfOrder)) != 0;
+  const std::uint64_t mask = p_.stale_window >= 64 ? ~0ull : ((1ull << p_.stale_window) - 1);
+  s.stale_hist = ((s.stale_hist << 1) | (stale ? 1u : 0u)) & mask;
+  if (stale) {
+    const int n = std::popcount(s.stale_hist);
+    if (n >= p_.stale_count) latch(FaultClass::kStaleData, j, t, n, p_.stale_count, 0.0);
+    return false;
+  }
+  // Plausibility: finite and within the physical ranges.
+  if (!std::isfinite(b) || std::abs(b) > p_.beta_max) {
+    latch(FaultClass::kImplausible, j, t, b, p_.beta_max, 0.0);
+    return false;
+  }
+  if (!std::isfinite(bd) || std::abs(bd) > p_.beta_dot_max) {
+    latch(FaultClass::kImplausible, j, t, bd, p_.beta_dot_max, 0.0);
+    return false;
+  }
+  if (!std::isfinite(d) || std::abs(d) > p_.deflection_max) {
+    latch(FaultClass::kImplausible, j, t, d, p_.deflection_max, 0.0);
+    return false;
+  }
+  return true;
+}
+
+void FaultObserver::residual_step(const Feedback& fb, const Command& cmd, int j, double dt,
+                                  double t) {
+  const auto k = static_cast<std::size_t>(j);
+  Joint& s = jt_[k];
+  const double b1 = fb.beta[k], bd1 = fb.beta_dot[k], d1 = fb.deflection[k];
+  const double b0 = s.beta, bd0 = s.beta_dot, d0 = s.defl;
+  const double K = K_[k];
+  const bool sensor_latched = joint_latched(j);
+
+  // ---- Kinematic consistency of the encoder: c = Δβ − T (β̇_0 + β̇_1)/2 ----
+  const double c = (b1 - b0) - 0.5 * dt * (bd0 + bd1);
+  c_[k] = c;
+  // A step in the commanded rate (start, hold, resume) moves the motor within ~J/k_d, faster
+  // than the trapezoid follows: no consistency verdicts for a few cycles.
+  if (std::abs(cmd.beta_dot_ref[k] - s.prev_ref_rate) > p_.command_step || cmd.torque_off)
+    s.cmd_settle = p_.command_settle;
+  s.prev_ref_rate = cmd.beta_dot_ref[k];
+  const bool settled = elapsed_ >= p_.settle;
+  if (s.cmd_settle > 0) {
+    --s.cmd_settle;
+  } else if (!settled) {
+  } else if (s.spike_wait > 0) {
+    if (std::abs(c) > p_.consistency_threshold) ++s.spikes;
+    if (s.spikes >= p_.noise_spikes) {
+      latch(FaultClass::kEncoderNoise, j, t, s.spike_value, p_.consistency_threshold, 0.0);
+      s.spike_wait = 0;
+    } else if (--s.spike_wait == 0 && s.hold_beta < p_.jump_window) {
+      // One isolated spike, the encoder alive afterwards: an offset jump.
+      latch(FaultClass::kEncoderJump, j, t, s.spike_value, p_.consistency_threshold, s.spike_value);
+    }
+  } else if (std::abs(c) > p_.consistency_threshold && !sensor_latched) {
+    s.spike_wait = p_.jump_window;
+    s.spikes = 0;
+    s.spike_value = c;
+  }
+
+  // ---- Hold (stuck) detection: bit-identical values while motion is commanded / happens ----
+  const double ref = cmd.beta_ref[k];
+  if (b1 == b0) {
+    if (s.hold_beta++ == 0) s.ref_min = s.ref_max = ref, s.rate_int = 0.0;
+    s.ref_min = std::min(s.ref_min, ref);
+    s.ref_max = std::max(s.ref_max, ref);
+    s.rate_int += dt * bd1;
+  } else {
+    s.hold_beta = 0;
+  }
+  if (d1 == d0) {
+    if (s.hold_defl++ == 0) s.beta_min = s.beta_max = b1;
+    s.beta_min = std::min(s.beta_min, b1);
+    s.beta_max = std::max(s.beta_max, b1);
+  } else {
+    s.hold_defl = 0;
+  }
+  s.hold_rate = bd1 == bd0 ? s.hold_rate + 1 : 0;
+  if (settled && s.hold_beta >= p_.hold_cycles) {
+    const double commanded = (cmd.kp[k] > 0 ? s.ref_max - s.ref_min : 0.0);
+    const double motion = std::max(commanded, std::abs(s.rate_int));
+    if (motion >= p_.hold_motion) {
+      if (s.hold_defl >= p_.hold_cycles && s.hold_rate >= p_.hold_cycles && s.hold_rate == s.hold_beta)
+        latch(FaultClass::kModuleSilent, j, t, s.hold_beta, p_.hold_cycles, 0.0);
+      else
+        latch(FaultClass::kEncoderStuck, j, t, motion, p_.hold_motion, b1);
+    }
+  }
+  if (settled && s.hold_defl >= p_.hold_cycles_deflection && s.beta_max - s.beta_min >= p_.hold_motion &&
+      s.hold_beta == 0)
+    latch(FaultClass::kDeflectionStuck, j, t, s.beta_max - s.beta_min, p_.hold_motion, d1);
+
+  // ---- Momentum residual (file comment of the header) ----
+  double Iu = 0.0;  // ∫u dt [N·m·s]
+  if (!cmd.torque_off) {
+    const double c0 = cmd.tau[k] + cmd.kp[k] * cmd.beta_ref[k] + cmd.kd[k] * cmd.beta_dot_ref[k];
+    const double u0 = c0 - cmd.kp[k] * b0 - cmd.kd[k] * bd0;
+    const double u1 = c0 - cmd.kp[k] * b1 - cmd.kd[k] * bd1;
+    if (p_.u_max > 0 && (std::abs(u0) >= p_.u_max || std::abs(u1) >= p_.u_max)) {
+      Iu = 0.5 * dt * (std::clamp(u0, -p_.u_max, p_.u_max) + std::clamp(u1, -p_.u_max, p_.u_max));
+    } else {
+      Iu = dt * c0 - cmd.kp[k] * dt * 0.5 * (b0 + b1) - cmd.kd[k] * (b1 - b0);
+    }
+  }
+  const double Is = dt * K * 0.5 * (d0 + d1);              // ∫K·deflection dt
+  const double Ib = p_.motor_viscous * (b1 - b0);          // ∫b_m β̇ dt
+  const double e = J_ * (bd1 - bd0) - (Iu - Is - Ib);      // unexplained impulse
+  const double a = 1.0 - std::exp(-p_.K_O * dt);
+  double& r = r_[k];
+  r += a * (e / dt - r);
+  const double x[4] = {Iu / dt, Is / dt, (b1 - b0) / dt, 1.0};
+  for (int i = 0; i < 4; ++i) s.phi[static_cast<std::size_t>(i)] += a * (x[i] - s.phi[static_cast<std::size_t>(i)]);
+
+  // ---- Detection and isolation from the residual ----
+  if (sensor_latched) {
+    s.classifying = false;
+    return;
+  }
+  if (!s.classifying) {
+    if (settled && std::abs(r) > p_.r_threshold && s.spike_wait == 0) {
+      s.classifying = true;
+      s.t0 = t;
+      s.n = s.above = 0;
+      s.peak = 0.0;
+      s.G.setZero();
+      s.g.setZero();
+    }
+    return;
+  }
+  const Eigen::Vector4d phi(s.phi[0], s.phi[1], s.phi[2], s.phi[3]);
+  s.G.noalias() += phi * phi.transpose();
+  s.g += phi * r;
+  ++s.n;
+  if (std::abs(r) > 0.5 * p_.r_threshold) ++s.above;
+  s.peak = std::max(s.peak, std::abs(r));
+  if (t - s.t0 >= p_.t_classify) classify(j, t);
+}
+
+// End of the window: confirm (persistent) and name the class by the dominant regressor.
+void FaultObserver::classify(int j, double t) {
+  Joint& s = jt_[static_cast<std::size_t>(j)];
+  s.classifying = false;
+  if (s.n == 0 || s.above < p_.persist_fraction * s.n) return;  // a transient: no fault
+  // Least squares r ≈ θ·φ (regularized a little for an unexcited regressor).
+  Eigen::Matrix4d G = s.G;
+  const double tr = G.trace();
+  G.diagonal().array() += 1e-9 * (tr > 0 ? tr : 1.0);
+  const Eigen::Vector4d th = G.ldlt().solve(s.g);
+  int best = 0;
+  double best_c = -1.0;
+  for (int i = 0; i < 4; ++i) {
+    const double contribution = std::abs(th(i)) * std::sqrt(s.G(i, i) / s.n);
+    if (contribution > best_c) best_c = contribution, best = i;
+  }
+  const double K = K_[static_cast<std::size_t>(j)];
+  switch (best) {
+    case 0:
+      latch(FaultClass::kActuatorTorque, j, t, s.peak, p_.r_threshold, 1.0 + th(0));
+      break;
+    case 1:
+      if (th(1) >= p_.spring_broken)
+        latch(FaultClass::kSpringBroken, j, t, s.peak, p_.r_threshold, 1.0 - th(1));
+      else
+        latch(FaultClass::kDeflectionScale, j, t, s.peak, p_.r_threshold, 1.0 / (1.0 - th(1)));
+      break;
+    case 2:
+      latch(FaultClass::kMotorFriction, j, t, s.peak, p_.r_threshold, -th(2));
+      break;
+    default:
+      latch(FaultClass::kDeflectionBias, j, t, s.peak, p_.r_threshold, th(3) / K);
+      break;
+  }
+}
+
+int FaultObserver::observe(const Feedback& fb, const Command& last_cmd, double t, double dt) {
+  if (!std::isfinite(dt) || dt <= 0) dt = p_.period;
+  elapsed_ += dt;
+  check_frame(fb, t);
+  const int J = std::min(joints_, fb.joints);
+  bool all_ok = frame_ok_ && J == joints_;
+  for (int j = 0; j < J; ++j) {
+    const auto k = static_cast<std::size_t>(j);
+    Joint& s = jt_[k];
+    const bool ok = check_joint(fb, j, t) && frame_ok_;
+    all_ok &= ok;
+    if (!ok) {
+      if (frame_ok_) s.prev_valid = false;  // a repeated frame keeps the previous sample
+      continue;
+    }
+    // Persistent saturation: the module law's demand beyond ±u_max (or the module says so).
+    const double u_demand = last_cmd.torque_off
+                                ? 0.0
+                                : last_cmd.tau[k] + last_cmd.kp[k] * (last_cmd.beta_ref[k] - fb.beta[k]) +
+                                      last_cmd.kd[k] * (last_cmd.beta_dot_ref[k] - fb.beta_dot[k]);
+    const bool sat = (p_.u_max > 0 && std::abs(u_demand) >= p_.u_max) ||
+                     (fb.status[k] & drivers::kStatusSaturated) != 0;
+    sat_lp_[k] += (1.0 - std::exp(-dt / p_.saturation_tau)) * ((sat ? 1.0 : 0.0) - sat_lp_[k]);
+    if (sat_lp_[k] > p_.saturation_fraction && elapsed_ >= p_.settle)
+      latch(FaultClass::kSaturation, j, t, sat_lp_[k], p_.saturation_fraction, u_demand);
+    if (s.prev_valid) residual_step(fb, last_cmd, j, dt, t);
+    // Link-side filters on α = β − deflection and β̇.
+    const double alpha = fb.beta[k] - fb.deflection[k];
+    const double w = 2.0 * std::numbers::pi * p_.accel_filter_hz;
+    if (!s.filt_init) {
+      s.af = alpha;
+      s.afd = s.afdd = 0.0;
+      s.bdf = fb.beta_dot[k];
+      s.bdd = 0.0;
+      s.filt_init = true;
+    } else {
+      s.afdd = w * w * (alpha - s.af) - 2.0 * w * s.afd;
+      s.afd += dt * s.afdd;
+      s.af += dt * s.afd;
+      const double ab = 1.0 - std::exp(-w * dt);
+      const double bdf_new = s.bdf + ab * (fb.beta_dot[k] - s.bdf);
+      s.bdd = (bdf_new - s.bdf) / dt;
+      s.bdf = bdf_new;
+    }
+    s.beta = fb.beta[k];
+    s.beta_dot = fb.beta_dot[k];
+    s.defl = fb.deflection[k];
+    s.prev_valid = true;
+  }
+  // ---- Link side: body prediction and external torques (all joints valid only) ----
+  if (body_model_ && all_ok) {
+    std::array<double, kMaxJoints> alpha{}, ad{}, add{}, bdd{};
+    for (int j = 0; j < J; ++j) {
+      const auto k = static_cast<std::size_t>(j);
+      alpha[k] = fb.beta[k] - fb.deflection[k];
+      ad[k] = jt_[k].afd;
+      add[k] = jt_[k].afdd;
+      bdd[k] = jt_[k].bdd;
+    }
+    if (body_model_->step(alpha.data(), ad.data(), add.data(), fb.beta.data(), fb.beta_dot.data(),
+                          bdd.data(), fb.deflection.data(), dt, tau_ext_.data())) {
+      BodyModel& bm = *body_model_;
+      body_ = {bm.theta_N(), bm.p_x(), bm.p_z(), bm.theta_N_dot(), bm.p_x_dot(), bm.p_z_dot()};
+      speed_ += (1.0 - std::exp(-dt / p_.speed_tau)) * (bm.p_x_dot() - speed_);
+    }
+  }
+  return n_latched_;
+}
+
+}  // namespace pedalwave::observer

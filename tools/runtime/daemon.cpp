@@ -164,7 +164,18 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
 #if PEDALWAVE_HAS_OBSERVER
   std::unique_ptr<observer::RuntimeObserver> obs;
   if (cfg.observer) {
-    obs = observer::make_runtime_observer(cfg.robot, cfg.controller, cfg.runtime.rt.rate_hz);
+    observer::ObserverParams op;
+    op.robot = cfg.robot;
+    if (op.robot.K.empty())  // one stiffness per joint, explicitly
+      op.robot.K.assign(static_cast<std::size_t>(op.robot.N - 1), op.robot.K_all);
+    op.period = 1.0 / cfg.runtime.rt.rate_hz;
+    if (cfg.driver.kind == config::DriverKind::kSim) {
+      const model::Scene& sc = cfg.driver.scene;
+      if (sc.ground_on) op.ground = sc.ground;  // nominal terrain of the onboard body model
+      if (sc.joint_friction_on) op.motor_viscous = sc.joint_friction.motor_viscous;
+      if (sc.torque_limit_on) op.u_max = sc.torque_limit.u_max;
+    }
+    obs = std::make_unique<observer::RuntimeObserver>(op);
     observer = obs.get();
   }
 #endif

@@ -70,7 +70,8 @@ FrictionLaw read_law(const Reader& r) {
 
 Scene read_scene(const Reader& r) {
   r.allow_only({"name", "description", "robot", "ground", "obstacles", "joint_friction",
-                "torque_limit", "sensor_noise", "initial", "gait", "duration", "integrator"});
+                "torque_limit", "sensor_noise", "initial", "gait", "duration", "integrator",
+                "faults"});
   Scene s;
   s.source = r.file();
   s.name = r.string("name", r.file());
@@ -154,6 +155,27 @@ Scene read_scene(const Reader& r) {
     s.initial.v = in.numbers("v");
     if (s.initial.pose == InitialPose::kExplicit && !in.has("q"))
       in.fail_key("q", "the full q (2N+1 values flexible, N+2 rigid) with pose: explicit");
+  }
+  if (r.has("faults")) {
+    // Injected faults (applied by drivers::FaultInjectingDriver): {type, joint, t_start, value,
+    // duration}.
+    const Reader fs = r["faults"];
+    if (!fs.is_sequence()) fs.fail("a list of {type, joint, t_start, value, duration}");
+    std::string names;
+    for (std::string_view n : kFaultTypeNames) names += (names.empty() ? "" : ", ") + std::string(n);
+    for (std::size_t i = 0; i < fs.size(); ++i) {
+      const Reader f = fs.at(i);
+      f.allow_only({"type", "joint", "t_start", "value", "duration"});
+      FaultSpec spec;
+      if (!f.has("type")) f.fail_key("type", "a fault type");
+      if (!parse_fault_type(f.string("type", ""), spec.type)) f["type"].fail("one of " + names);
+      const int joints = s.robot.N - 1;
+      spec.joint = static_cast<int>(f.integer("joint", 0, 0, joints - 1));
+      spec.t_start = f.non_negative("t_start", 0.0);
+      spec.value = f.number("value", 0.0);
+      if (f.has("duration")) spec.duration = f.positive("duration", spec.duration);
+      s.faults.push_back(spec);
+    }
   }
   if (r.has("gait")) s.gait = read_gait(r["gait"]);
   s.duration = r.positive("duration", s.duration);

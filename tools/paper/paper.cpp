@@ -844,7 +844,7 @@ std::string paper_table(const AllResult& r, std::size_t* rows) {
                   fmt(kOnTopBelow * 100) + " … +" + fmt(kOnTopAbove * 100) + " cm of its height; whole body past: every body point beyond the far "
                   "edge). Speeds: " + evidence(&SensitivityRow::stair_vkc, false) +
                   " (k_c = 10.1). " + stuck(s0) + stuck(s1) + climbable +
-                  " Our contact also tests the box's corners against the link segments, which the "
+                  "Our contact also tests the box's corners against the link segments, which the "
                   "paper names as a remedy but whose use in its results it does not state; see the shape plots "
                   "(stair_shapes_*.svg, stair_film_*.svg) for what the body does at the box.");
   std::string check_text;

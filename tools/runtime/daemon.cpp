@@ -158,7 +158,8 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   std::ostringstream log;
   std::ostream& out = opt.print ? std::cout : log;
 
-  auto driver = make_driver(cfg, cfg.duration);
+  std::unique_ptr<drivers::Driver> owned = opt.driver ? nullptr : make_driver(cfg, cfg.duration);
+  drivers::Driver* driver = opt.driver ? opt.driver : owned.get();
   GaitStage stage(cfg.controller);
   runtime::Observer* observer = nullptr;
 #if PEDALWAVE_HAS_OBSERVER
@@ -238,7 +239,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   else
     out << ", no fault";
   out << "\n";
-  if (auto* sim = dynamic_cast<drivers::SimDriver*>(driver.get())) {
+  if (auto* sim = dynamic_cast<drivers::SimDriver*>(driver)) {
     sim->stop();
     const drivers::SimRecording& rec = sim->recording();
     const model::Model& m = sim->sim().plant().model();

@@ -15,6 +15,10 @@ struct DaemonOptions {
   std::string plots_dir;     // write plots (and a CSV of the cycle samples) here; empty = none
   bool telemetry = true;     // false overrides the configuration's telemetry.enabled
   bool print = true;         // print the start report and the summary to stdout
+  // Use this driver (not owned; already open, e.g. a SocketCanDriver on a socket pair or a
+  // SerialDriver on a pty) instead of building the configured one; the configuration still says
+  // which bus it is and is validated as usual. nullptr = build the configured driver.
+  drivers::Driver* driver = nullptr;
 };
 
 struct DaemonResult {

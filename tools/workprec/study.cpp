@@ -66,8 +66,14 @@ RunResult run_once(const RunSpec& spec, bool record) {
     const model::StepStatus st =
         loop ? loop->step() : sim.advance_to(static_cast<double>(k) * period);
     if (st != model::StepStatus::kOk) {
-      r.status = RunStatus::kUnstable;
+      // NaN/Inf is an instability; a step below h_min or a failed evaluation is a failure.
+      r.status = st == model::StepStatus::kNonFinite ? RunStatus::kUnstable : RunStatus::kFailed;
       r.why = std::string(model::to_string(st));
+      break;
+    }
+    if (spec.max_evaluations > 0 && sim.integrator().stats().evaluations > spec.max_evaluations) {
+      r.status = RunStatus::kFailed;
+      r.why = "too costly: over " + std::to_string(spec.max_evaluations) + " evaluations";
       break;
     }
     if (sim.v().lpNorm<Eigen::Infinity>() > 1e3 || !sim.q().allFinite()) {

@@ -19,6 +19,7 @@ struct RunSpec {
   double rate_hz = 1000.0;      // control rate = sample rate [Hz]
   double duration = 10.0;       // simulated time [s]
   model::IntegratorOptions integ;
+  std::uint64_t max_evaluations = 0;  // stop as kFailed ("too costly") beyond this; 0 = no cap
 };
 
 // Samples every control period (and at t = 0).
@@ -45,8 +46,9 @@ struct RunResult {
   Trajectory traj;                // empty unless recorded
 };
 
-// Runs `spec` once; records the trajectory when `record`. A NaN/Inf, a failed step or a blow-up
-// (|q̇|∞ > 1e3, far beyond any motion of this robot) ends the run as kUnstable, never a crash.
+// Runs `spec` once; records the trajectory when `record`. A NaN/Inf or a blow-up (|q̇|∞ > 1e3, far
+// beyond any motion of this robot) ends the run as kUnstable; an adaptive step below h_min, a
+// failed evaluation or the evaluation cap as kFailed — never a crash.
 RunResult run_once(const RunSpec& spec, bool record);
 
 // Errors of a run against a reference sampled at the same times.

@@ -54,6 +54,10 @@ struct FaultObserver::Joint {
   double peak = 0;
   Eigen::Matrix4d G = Eigen::Matrix4d::Zero();
   Eigen::Vector4d g = Eigen::Vector4d::Zero();
+  // The same least squares over the healthy past (forgetting nominal_tau): the nominal signature
+  // (model error of the plant, coupling) that a fault's signature is measured against.
+  Eigen::Matrix4d G_nom = Eigen::Matrix4d::Zero();
+  Eigen::Vector4d g_nom = Eigen::Vector4d::Zero();
   // Checks
   int missing_run = 0;
   std::uint64_t stale_hist = 0;
@@ -104,6 +108,8 @@ void validate(const ObserverParams& p) {
   pos("K_O", p.K_O);
   pos("r_threshold", p.r_threshold);
   pos("t_classify", p.t_classify);
+  pos("nominal_tau", p.nominal_tau);
+  nonneg("t_transient", p.t_transient);
   if (!(p.persist_fraction >= 0 && p.persist_fraction <= 1)) fail("persist_fraction", p.persist_fraction, "in [0, 1]");
   pos("spring_broken", p.spring_broken);
   pos("beta_max", p.beta_max);
@@ -259,7 +265,7 @@ void FaultObserver::residual_step(const Feedback& fb, const Command& cmd, int j,
     if (s.spikes >= p_.noise_spikes) {
       latch(FaultClass::kEncoderNoise, j, t, s.spike_value, p_.consistency_threshold, 0.0);
       s.spike_wait = 0;
-    } else if (--s.spike_wait == 0 && s.hold_beta < p_.jump_window) {
+    } else if (--s.spike_wait == 0 && s.hold_beta + 2 < p_.jump_window) {
       // One isolated spike, the encoder alive afterwards: an offset jump.
       latch(FaultClass::kEncoderJump, j, t, s.spike_value, p_.consistency_threshold, s.spike_value);
     }
@@ -327,7 +333,15 @@ void FaultObserver::residual_step(const Feedback& fb, const Command& cmd, int j,
     s.classifying = false;
     return;
   }
+  const Eigen::Vector4d phi(s.phi[0], s.phi[1], s.phi[2], s.phi[3]);
   if (!s.classifying) {
+    if (settled) {
+      const double lam = std::exp(-dt / p_.nominal_tau);
+      s.G_nom *= lam;
+      s.g_nom *= lam;
+      s.G_nom.noalias() += phi * phi.transpose();
+      s.g_nom += phi * r;
+    }
     if (settled && std::abs(r) > p_.r_threshold && s.spike_wait == 0) {
       s.classifying = true;
       s.t0 = t;
@@ -338,13 +352,13 @@ void FaultObserver::residual_step(const Feedback& fb, const Command& cmd, int j,
     }
     return;
   }
-  const Eigen::Vector4d phi(s.phi[0], s.phi[1], s.phi[2], s.phi[3]);
+  if (t - s.t0 < p_.t_transient) return;  // r and φ still in the onset transient (3/K_O)
   s.G.noalias() += phi * phi.transpose();
   s.g += phi * r;
   ++s.n;
   if (std::abs(r) > 0.5 * p_.r_threshold) ++s.above;
   s.peak = std::max(s.peak, std::abs(r));
-  if (t - s.t0 >= p_.t_classify) classify(j, t);
+  if (t - s.t0 >= p_.t_transient + p_.t_classify) classify(j, t);
 }
 
 // End of the window: confirm (persistent) and name the class by the dominant regressor.
@@ -352,11 +366,17 @@ void FaultObserver::classify(int j, double t) {
   Joint& s = jt_[static_cast<std::size_t>(j)];
   s.classifying = false;
   if (s.n == 0 || s.above < p_.persist_fraction * s.n) return;  // a transient: no fault
-  // Least squares r ≈ θ·φ (regularized a little for an unexcited regressor).
-  Eigen::Matrix4d G = s.G;
-  const double tr = G.trace();
-  G.diagonal().array() += 1e-9 * (tr > 0 ? tr : 1.0);
-  const Eigen::Vector4d th = G.ldlt().solve(s.g);
+  // Least squares r ≈ θ·φ over the window and over the healthy past (regularized a little for an
+  // unexcited regressor); the fault's signature is the change Δθ = θ − θ_nominal.
+  // The nominal fit is ridge-regularized: directions the healthy data does not determine (u and
+  // K·deflection are nearly collinear: they differ by J β̈) stay at zero instead of ±large.
+  auto solve = [](const Eigen::Matrix4d& G0, const Eigen::Vector4d& g0, double ridge) {
+    Eigen::Matrix4d G = G0;
+    const double tr = G.trace();
+    G.diagonal().array() += ridge * (tr > 0 ? tr : 1.0);
+    return Eigen::Vector4d(G.ldlt().solve(g0));
+  };
+  const Eigen::Vector4d th = solve(s.G, s.g, 1e-9) - solve(s.G_nom, s.g_nom, 1e-3);
   int best = 0;
   double best_c = -1.0;
   for (int i = 0; i < 4; ++i) {

@@ -78,11 +78,15 @@ struct ObserverParams {
   int command_settle = 5;       // … pauses the consistency check this many cycles (hold/resume)
   double K_O = 10.0;            // observer gain (residual bandwidth) [1/s]
   double r_threshold = 0.03;    // detection threshold on |r| [N·m] (README: 2× the nominal max)
-  double t_classify = 0.6;      // least-squares window after the first crossing [s]
+  double t_classify = 2.0;      // least-squares window after the first crossing [s] (one gait
+                                // period: the regressors need a full cycle to separate)
+  double nominal_tau = 10.0;    // memory of the healthy-past least squares [s]
+  double t_transient = 0.3;     // after the crossing, skip this long before fitting [s] (3/K_O:
+                                // the filter's onset transient is not a step in φ)
   double persist_fraction = 0.3;  // fraction of the window with |r| > r_threshold/2 to confirm [-]
   double spring_broken = 0.5;   // θ_s ≥ this: stiffness lost ≥ 50 % → kSpringBroken [-]
   // ---- Sensor and data checks ----
-  double beta_max = 3.0;        // |β| plausible range [rad]
+  double beta_max = 6.3;        // |β| plausible range [rad] (≈ 2π: links would overlap)
   double beta_dot_max = 60.0;   // |β̇| plausible range [rad/s]
   double deflection_max = 1.0;  // |deflection| plausible range (spring travel) [rad]
   int missing_cycles = 3;       // consecutive kStatusMissing (or frozen frames) → silent [-]
@@ -96,7 +100,7 @@ struct ObserverParams {
   int jump_window = 20;         // cycles after a spike to tell a jump from noise [cycles]
   int noise_spikes = 2;         // further spikes within jump_window → noise burst [-]
   double saturation_fraction = 0.8;  // low-passed saturated indicator above this → fault [-]
-  double saturation_tau = 0.25;      // its time constant [s]
+  double saturation_tau = 0.1;       // its time constant [s]
   // ---- Link side / body prediction ----
   bool body_model = true;       // run the onboard body model (predicted θ_N, p, τ_ext)
   model::Ground ground;         // nominal terrain of the body model (no obstacles)

@@ -297,6 +297,12 @@ PhaseResult run_phase(const Options& o, int joints, const std::string& phase, in
       daemon_yaml(o, scene_path, decimation), "loopbench.yaml",
       std::filesystem::path(scene_path).parent_path().string());
   cfg.runtime.max_cycles = static_cast<std::uint64_t>(std::llround(o.seconds * o.rate));
+  // The observer runs and its verdicts are published, but never acted on: every phase runs its
+  // full length whatever the observer concludes (a benchmark of timing, not of fault handling).
+  cfg.runtime.reactions.on_warning = runtime::Reaction::kContinue;
+  cfg.runtime.reactions.on_degrade = runtime::Reaction::kContinue;
+  cfg.runtime.reactions.on_stop = runtime::Reaction::kContinue;
+  cfg.runtime.reactions.by_class.fill(runtime::Reaction::kBySeverity);
 
   drivers::SimDriver sim(cfg.driver.scene, cfg.driver.sim);
   app::GaitStage stage(cfg.controller);
@@ -467,7 +473,7 @@ int main(int argc, char** argv) {
       std::getline(la, l);
       std::printf("%s\n", l.c_str());
     }
-    std::printf("driver: sim (lockstep plant), gait controller (module-side PD), observer %s; demo decimation 1/%d\n",
+    std::printf("driver: sim (lockstep plant), gait controller (module-side PD), observer %s (verdicts published, not acted on); demo decimation 1/%d\n",
 #if PEDALWAVE_HAS_OBSERVER
                 "on",
 #else

@@ -1,0 +1,148 @@
+// The observer's configuration errors, data checks and verdict assembly, on synthetic feedback.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "pedalwave/observer/runtime_observer.hpp"
+
+namespace pw = pedalwave;
+using pw::runtime::FaultClass;
+using pw::runtime::Severity;
+
+namespace {
+
+pw::observer::ObserverParams params() {
+  pw::observer::ObserverParams p;
+  p.body_model = false;
+  return p;
+}
+
+// A healthy synthetic frame: joints moving on a slow sine, consistent β and β̇, no command.
+void frame(pw::drivers::Feedback& fb, std::uint64_t k, double dt) {
+  fb.joints = 5;
+  fb.seq = k + 1;
+  const double t = static_cast<double>(k) * dt;
+  for (int j = 0; j < 5; ++j) {
+    const auto i = static_cast<std::size_t>(j);
+    fb.beta[i] = 0.3 * std::sin(t + j);
+    fb.beta_dot[i] = 0.3 * std::cos(t + j);
+    fb.deflection[i] = 0.01 * std::sin(2 * t + j);
+    fb.status[i] = 0;
+  }
+}
+
+TEST(Params, InvalidValuesThrowNamingTheParameter) {
+  auto p = params();
+  p.K_O = -1;
+  try {
+    pw::observer::FaultObserver o(p);
+    FAIL() << "accepted K_O = -1";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("K_O"), std::string::npos) << e.what();
+  }
+  p = params();
+  p.robot.joints = pw::model::JointModel::kRigid;
+  EXPECT_THROW(pw::observer::FaultObserver{p}, std::invalid_argument);
+  p = params();
+  p.stale_window = 65;
+  EXPECT_THROW(pw::observer::FaultObserver{p}, std::invalid_argument);
+}
+
+TEST(Checks, NanIsImplausibleAtOnceOnItsJointAndStops) {
+  pw::observer::RuntimeObserver obs(params());
+  pw::drivers::Feedback fb{};
+  pw::drivers::Command cmd{};
+  pw::runtime::CycleSample s{};
+  for (std::uint64_t k = 0; k < 10; ++k) {
+    frame(fb, k, 1e-3);
+    if (k == 7) fb.deflection[3] = std::numeric_limits<double>::quiet_NaN();
+    const auto v = obs.observe(fb, cmd, 0.0, 1e-3, s);
+    if (k < 7) {
+      EXPECT_EQ(v.fault, FaultClass::kNone) << k;
+    } else {
+      EXPECT_EQ(v.fault, FaultClass::kImplausible);
+      EXPECT_EQ(v.joint, 3);
+      EXPECT_EQ(v.severity, Severity::kStop);
+      EXPECT_NE(v.text, nullptr);
+    }
+  }
+}
+
+TEST(Checks, MissingForSeveralCyclesIsASilentModuleNotOne) {
+  auto p = params();
+  pw::observer::FaultObserver o(p);
+  pw::drivers::Feedback fb{};
+  pw::drivers::Command cmd{};
+  for (std::uint64_t k = 0; k < 40; ++k) {
+    frame(fb, k, 1e-3);
+    if (k == 5 || (k >= 20 && k < 20 + static_cast<std::uint64_t>(p.missing_cycles)))
+      fb.status[1] |= pw::drivers::kStatusMissing;
+    o.observe(fb, cmd, 0.0, 1e-3);
+    if (k < 20 + static_cast<std::uint64_t>(p.missing_cycles) - 1) {
+      EXPECT_EQ(o.fault_count(), 0) << k;
+    }
+  }
+  ASSERT_EQ(o.fault_count(), 1);
+  EXPECT_EQ(o.faults()[0].fault, FaultClass::kModuleSilent);
+  EXPECT_EQ(o.faults()[0].joint, 1);
+}
+
+TEST(Checks, RepeatedSeqIsStaleFrameData) {
+  pw::observer::FaultObserver o(params());
+  pw::drivers::Feedback fb{};
+  pw::drivers::Command cmd{};
+  for (std::uint64_t k = 0; k < 30; ++k) {
+    frame(fb, k, 1e-3);
+    if (k >= 10 && (k % 2) == 0) fb.seq = k;  // the previous frame's seq again
+    o.observe(fb, cmd, 0.0, 1e-3);
+  }
+  ASSERT_GE(o.fault_count(), 1);
+  EXPECT_EQ(o.faults()[0].fault, FaultClass::kStaleData);
+  EXPECT_EQ(o.faults()[0].joint, -1);
+}
+
+TEST(Verdict, MostSevereLatchedFaultWithAllFlagsUntilReset) {
+  pw::observer::RuntimeObserver obs(params());
+  pw::drivers::Feedback fb{};
+  pw::drivers::Command cmd{};
+  pw::runtime::CycleSample s{};
+  pw::runtime::Verdict v;
+  for (std::uint64_t k = 0; k < 60; ++k) {
+    frame(fb, k, 1e-3);
+    if (k >= 10) fb.status[0] |= pw::drivers::kStatusStale;  // degrade
+    if (k == 40) fb.beta[4] = 1e3;                            // stop
+    v = obs.observe(fb, cmd, 0.0, 1e-3, s);
+    if (k > 20 && k < 40) {
+      EXPECT_EQ(v.fault, FaultClass::kStaleData);
+    }
+  }
+  EXPECT_EQ(v.fault, FaultClass::kImplausible);
+  EXPECT_EQ(v.joint, 4);
+  EXPECT_EQ(v.value, 1e3);
+  EXPECT_EQ(v.threshold, params().beta_max);
+  EXPECT_EQ(v.flags, (1u << static_cast<unsigned>(FaultClass::kStaleData)) |
+                         (1u << static_cast<unsigned>(FaultClass::kImplausible)));
+  obs.reset();
+  frame(fb, 0, 1e-3);
+  v = obs.observe(fb, cmd, 0.0, 1e-3, s);
+  EXPECT_EQ(v.fault, FaultClass::kNone);
+  EXPECT_EQ(v.flags, 0u);
+}
+
+TEST(Verdict, SeverityIsConfigured) {
+  auto p = params();
+  p.severity[static_cast<std::size_t>(FaultClass::kImplausible)] = Severity::kWarning;
+  pw::observer::RuntimeObserver obs(p);
+  pw::drivers::Feedback fb{};
+  pw::drivers::Command cmd{};
+  pw::runtime::CycleSample s{};
+  frame(fb, 0, 1e-3);
+  fb.beta_dot[2] = std::numeric_limits<double>::infinity();
+  const auto v = obs.observe(fb, cmd, 0.0, 1e-3, s);
+  EXPECT_EQ(v.fault, FaultClass::kImplausible);
+  EXPECT_EQ(v.severity, Severity::kWarning);
+}
+
+}  // namespace

@@ -107,10 +107,11 @@ std::vector<EffectCase> effect_cases() {
                  shipped("friction_change")});
   Scene stair = shipped("stair");
   out.push_back({"ground+box_far", "ground + box out of reach (stair, broad phase)", "ground", stair});
-  // The box under the front half of the body: points inside it and its corners against links.
+  // The box under the raised front of the gait-start shape: a body point inside it (top face)
+  // and its corners tested against every link.
   Scene reach = stair;
   reach.boxes[0].ahead_of_head = std::numeric_limits<double>::quiet_NaN();
-  reach.boxes[0].x_near = 0.08;
+  reach.boxes[0].x_near = 0.0;
   out.push_back({"ground+box", "ground + box in reach (faces + corner segments)", "ground", reach});
   Scene limits = reach;
   limits.joint_friction_on = true;

@@ -145,11 +145,14 @@ IoStatus SimDriver::read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback
   if (opt_.clock == SimClock::kLockstep) {
     // The plant follows the loop's clock: when the loop skipped periods (an overrun), the robot
     // kept moving under the last command for that time too.
+    // Whole periods only: the loop skips whole periods, and its dt is deadline-based, so the
+    // plant must advance by exactly the skipped periods (wake-up jitter is not plant time).
     if (last_read_ns_ != 0 && now_ns > last_read_ns_) {
-      const double lag = static_cast<double>(now_ns - last_read_ns_) * 1e-9 - opt_.period;
-      if (lag > 0.5 * opt_.period) {
+      const double gap = static_cast<double>(now_ns - last_read_ns_) * 1e-9 / opt_.period;
+      const long skipped = std::lround(gap) - 1;
+      if (skipped > 0) {
         model::Simulation& s = *sim_;
-        const model::StepStatus st = s.advance_to(s.t() + lag);
+        const model::StepStatus st = s.advance_to(s.t() + static_cast<double>(skipped) * opt_.period);
         if (st != model::StepStatus::kOk) status_.store(static_cast<int>(st));
       }
     }

@@ -1,0 +1,141 @@
+// pedalwave_virtual_robot end to end: started with --pty it prints the slave path, the runtime's
+// serial driver opens that path and the daemon walks against it; on SIGINT the tool stops and
+// reports what it did (its counts must match what the runtime did). Bad input: exit 2, one line.
+#include <gtest/gtest.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "walk_rig.hpp"
+
+using namespace pedalwave;
+
+namespace {
+
+// The tool as a child process with stdout+stderr on a pipe.
+class Tool {
+ public:
+  explicit Tool(std::vector<std::string> args) {
+    args.insert(args.begin(), PEDALWAVE_VROBOT_EXE);
+    int p[2];
+    if (::pipe2(p, O_CLOEXEC) != 0) return;
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const pid_t parent = ::getpid();
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      if (::prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || ::getppid() != parent) ::_exit(126);
+      ::dup2(p[1], STDOUT_FILENO);
+      ::dup2(p[1], STDERR_FILENO);
+      ::execv(argv[0], argv.data());
+      ::_exit(127);
+    }
+    ::close(p[1]);
+    out_ = p[0];
+  }
+  ~Tool() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+    if (out_ >= 0) ::close(out_);
+  }
+  // Reads until `needle` appears in the output or the tool closes it (EOF) / timeout_s passes.
+  bool read_until(const std::string& needle, double timeout_s) {
+    const std::int64_t end = test::mono_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
+    while (text.find(needle) == std::string::npos) {
+      const std::int64_t left_ms = (end - test::mono_ns()) / 1'000'000;
+      if (left_ms <= 0) return false;
+      pollfd pf{out_, POLLIN, 0};
+      if (::poll(&pf, 1, static_cast<int>(left_ms)) <= 0) continue;
+      char buf[4096];
+      const ssize_t n = ::read(out_, buf, sizeof buf);
+      if (n <= 0) return text.find(needle) != std::string::npos;
+      text.append(buf, static_cast<std::size_t>(n));
+    }
+    return true;
+  }
+  // Waits for the exit (reading the rest of the output); returns the exit code, −1 if signalled.
+  int wait() {
+    read_until("\x01never\x01", 60.0);
+    int st = 0;
+    ::waitpid(pid_, &st, 0);
+    pid_ = -1;
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  }
+  void signal(int s) { ::kill(pid_, s); }
+  std::string text;
+
+ private:
+  pid_t pid_ = -1;
+  int out_ = -1;
+};
+
+std::uint64_t number_after(const std::string& text, const std::string& label) {
+  std::smatch m;
+  const std::regex re(label + " ([0-9]+)");
+  return std::regex_search(text, m, re) ? std::stoull(m[1]) : ~0ull;
+}
+
+}  // namespace
+
+TEST(VirtualRobotCli, PtyServesTheRuntimeAndReportsAtSigint) {
+  Tool tool({"--scene", test::kScenePath, "--pty"});
+  ASSERT_TRUE(tool.read_until("waiting for the host", 30.0)) << tool.text;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(tool.text, m, std::regex("pty: (/dev/pts/[0-9]+)"))) << tool.text;
+  const std::string path = m[1];
+
+  const model::Scene scene = config::load_scene(test::kScenePath);
+  test::WalkSetup s{.transport = test::Transport::kSerial, .rate_hz = 500, .duration = 4};
+  config::DaemonConfig cfg = test::daemon_config(s, scene);
+  cfg.driver.serial.device = path;
+  auto drv = drivers::SerialDriver::open(cfg.driver.serial);  // the real open() of the device
+  const app::DaemonResult r = app::run_daemon(cfg, test::quiet(drv.get()));
+  EXPECT_EQ(r.run.reason, runtime::ExitReason::kCycleLimit);
+  EXPECT_EQ(r.run.fault, runtime::FaultClass::kNone) << runtime::to_string(r.run.fault);
+  EXPECT_EQ(r.run.cycles, 2000u);
+  const drivers::DriverCounters c = drv->counters();
+  drv.reset();
+
+  tool.signal(SIGINT);
+  EXPECT_EQ(tool.wait(), 0) << tool.text;
+  std::printf("%s", tool.text.c_str());
+  // The tool's account matches the runtime's: every cycle's SYNC, J commands per cycle plus the
+  // safe stop's torque-off to each module, every reply the host counted.
+  EXPECT_EQ(number_after(tool.text, "SYNCs"), r.run.cycles);
+  EXPECT_EQ(number_after(tool.text, "commands latched"), 5 * r.run.cycles + 5);
+  EXPECT_EQ(number_after(tool.text, "torque-off"), 5u);
+  EXPECT_EQ(number_after(tool.text, "replies sent"), 5 * r.run.cycles);
+  EXPECT_GE(c.frames_rx + c.missing, 5 * r.run.cycles - 5);
+  EXPECT_NE(tool.text.find("outputs off"), std::string::npos) << "the safe stop reached the plant";
+  EXPECT_NE(tool.text.find("cm/s on average"), std::string::npos);
+}
+
+TEST(VirtualRobotCli, BadInputExitsWithCode2AndOneLine) {
+  {
+    Tool t({"--scene", test::kScenePath});
+    EXPECT_EQ(t.wait(), 2);
+    EXPECT_NE(t.text.find("--can IFNAME"), std::string::npos) << t.text;
+  }
+  {
+    Tool t({"--scene", "/nonexistent/scene.yaml", "--pty"});
+    EXPECT_EQ(t.wait(), 2);
+    EXPECT_NE(t.text.find("/nonexistent/scene.yaml"), std::string::npos) << t.text;
+  }
+  {
+    Tool t({"--scene", test::kScenePath, "--pty", "--silent", "9"});
+    EXPECT_EQ(t.wait(), 2);
+    EXPECT_NE(t.text.find("--silent 9: expected a joint 1…5"), std::string::npos) << t.text;
+  }
+  {
+    Tool t({"--scene", test::kScenePath, "--pty", "--loss", "1.5"});
+    EXPECT_EQ(t.wait(), 2) << t.text;
+  }
+}

@@ -1,0 +1,309 @@
+// Test rig: the runtime daemon (app::run_daemon, the real SocketCAN / serial driver) against the
+// virtual robot (the scene's plant behind the module emulator) over a socket pair or a pty, and the
+// same runtime against the in-process simulated plant, for comparing how they walk.
+#pragma once
+
+#include <fcntl.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+
+#include "daemon.hpp"
+#include "pedalwave/config/daemon.hpp"
+#include "pedalwave/config/scene.hpp"
+#include "pedalwave/drivers/can_protocol.hpp"
+#include "pedalwave/drivers/serial_driver.hpp"
+#include "pedalwave/drivers/socketcan_driver.hpp"
+#include "pedalwave/vrobot/virtual_robot.hpp"
+
+namespace pedalwave::test {
+
+inline const char* kScenePath = PEDALWAVE_CONFIG_DIR "/scenes/flat_high_friction.yaml";
+
+inline std::int64_t mono_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec * 1'000'000'000LL + ts.tv_nsec;
+}
+
+// Polls every 2 ms until pred() or timeout_s of wall time; returns pred(). (A wait for an event
+// that must happen, not a timing assertion: the timeout only keeps a broken run from hanging.)
+template <class Pred>
+bool wait_until(Pred pred, double timeout_s) {
+  const std::int64_t end = mono_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
+  while (!pred() && mono_ns() < end) {
+    const timespec ts{0, 2'000'000};
+    nanosleep(&ts, nullptr);
+  }
+  return pred();
+}
+
+enum class Transport { kSim, kCanClassic, kCanFd, kSerial };
+
+inline const char* name(Transport t) {
+  switch (t) {
+    case Transport::kSim: return "sim";
+    case Transport::kCanClassic: return "can-classic";
+    case Transport::kCanFd: return "can-fd";
+    case Transport::kSerial: return "serial";
+  }
+  return "?";
+}
+
+struct WalkSetup {
+  Transport transport = Transport::kSim;
+  double rate_hz = 1000;       // loop rate [Hz]
+  double duration = 12;        // run time = loop cycles / rate [s]
+  double stale_timeout = 0.2;  // runtime's stale-data limit [s]
+  double read_budget = 0.5;    // driver read deadline = wake + budget·period [-]
+  bool lockstep = false;       // lockstep loop clock (kSim and the bus model only)
+  double k_c = 0.0;            // adaptive gain
+  double h = 0.0;              // kSim: integrator step override [s]; 0 = the scene's
+  double command_timeout = 0.05;  // modules' command lifetime [s]
+  int cpu = -1;                // pin the loop thread to this CPU; −1 = no pinning
+};
+
+// The daemon configuration of `s`, in the YAML the daemon reads (config/runtime/*.yaml): only the
+// driver section differs between the simulated plant and the buses.
+inline config::DaemonConfig daemon_config(const WalkSetup& s, const model::Scene& scene) {
+  std::string driver;
+  switch (s.transport) {
+    case Transport::kSim:
+      driver = "{type: sim, scene: ../scenes/flat_high_friction.yaml, clock: lockstep}";
+      break;
+    case Transport::kCanClassic:
+      driver = "{type: socketcan, ifname: vcan0, fd: false, bitrate: 1.0e6}";
+      break;
+    case Transport::kCanFd:
+      driver = "{type: socketcan, ifname: vcan0, fd: true, bitrate: 1.0e6, data_bitrate: 5.0e6}";
+      break;
+    case Transport::kSerial:
+      driver = "{type: serial, device: /dev/null, baud: 4000000, return_delay: 2.0e-5}";
+      break;
+  }
+  char yaml[1024];
+  std::snprintf(yaml, sizeof yaml,
+                "name: vrobot-%s\nrate_hz: %g\nduration: %g\nrobot: {N: %d}\ndriver: %s\n"
+                "controller: {k_c: %g, pd_placement: module}\n"
+                "realtime: {clock: %s, stale_timeout: %g, read_budget: %g, cpu: %d}\n"
+                "observer: {enabled: true}\n"
+                "telemetry: {enabled: false}\n",
+                name(s.transport), s.rate_hz, s.duration, scene.robot.N, driver.c_str(), s.k_c,
+                s.lockstep ? "lockstep" : "realtime", s.stale_timeout, s.read_budget, s.cpu);
+  config::DaemonConfig c =
+      config::parse_daemon_config(yaml, std::string("vrobot-") + name(s.transport) + ".yaml",
+                                  PEDALWAVE_CONFIG_DIR "/runtime");
+  if (s.h > 0 && c.driver.kind == config::DriverKind::kSim) c.driver.scene.integrator.h = s.h;
+  // The controller walks with the scene's gait, as the sim configuration does.
+  c.controller.gait.A_p = scene.gait.A_p;
+  c.controller.gait.omega = scene.gait.omega;
+  c.controller.admittance.Pi_n = {scene.gait.eta};
+  if (c.robot.stiffness(0) != scene.robot.stiffness(0) || c.robot.n != scene.robot.n ||
+      c.robot.I_r != scene.robot.I_r)
+    throw std::logic_error("daemon robot differs from the scene's robot");
+  return c;
+}
+
+inline app::DaemonOptions quiet(drivers::Driver* d = nullptr) {
+  app::DaemonOptions o;
+  o.telemetry = false;
+  o.print = false;
+  o.driver = d;
+  return o;
+}
+
+// Copies of the emulator's counters at the end of a run.
+struct EmulatorCounts {
+  std::uint64_t syncs = 0, replies_sent = 0, replies_dropped = 0, replies_corrupted = 0,
+                commands = 0, torque_off_cmds = 0, lifetime_expired = 0, rx_errors = 0;
+};
+
+struct WalkResult {
+  app::DaemonResult daemon;
+  double speed = NAN;        // COM speed over t ≥ 2 s [m/s]
+  double plant_t = 0;        // plant time covered [s]
+  drivers::DriverCounters counters{};
+  EmulatorCounts emu{};
+  vrobot::PlantProgress plant{};
+  bool all_modules_off = false;   // every module's output stage off at the end (ModuleBank)
+  std::string report;             // the virtual robot's report
+};
+
+// The in-process simulated plant (lockstep loop clock and plant: deterministic).
+inline WalkResult walk_sim(WalkSetup s, const model::Scene& scene) {
+  s.transport = Transport::kSim;
+  s.lockstep = true;
+  WalkResult r;
+  r.daemon = app::run_daemon(daemon_config(s, scene), quiet());
+  r.speed = r.daemon.forward_speed;
+  r.plant_t = r.daemon.sim_time;
+  return r;
+}
+
+// Options of the virtual robot for a walk of `s` (recording sized for the run).
+inline vrobot::VirtualRobotOptions robot_options(const WalkSetup& s, const drivers::FaultConfig& faults) {
+  vrobot::VirtualRobotOptions vo;
+  vo.bus = s.transport == Transport::kSerial ? vrobot::Bus::kSerial : vrobot::Bus::kCan;
+  vo.emulator.fd = s.transport == Transport::kCanFd;
+  vo.emulator.faults = faults;
+  vo.emulator.command_timeout_ns = static_cast<std::int64_t>(s.command_timeout * 1e9);
+  vo.plant.record_capacity = static_cast<std::size_t>(s.duration * 100 * 2) + 1000;
+  return vo;
+}
+
+// Runs the daemon (configuration cfg) with `drv` against the started `robot`, waits until the
+// safe stop's torque-off reached the modules, stops the robot and collects the results.
+inline WalkResult run_walk(const config::DaemonConfig& cfg, vrobot::VirtualRobot& robot,
+                           drivers::Driver& drv) {
+  robot.start();
+  WalkResult r;
+  r.daemon = app::run_daemon(cfg, quiet(&drv));
+  // The daemon's last driver call was safe_stop(): wait until the modules latched it.
+  const int J = robot.joints();
+  // (A loaded or emulated machine may still be working through its backlog: wait generously.)
+  wait_until([&] { return robot.stats().torque_off_cmds.load() >= static_cast<std::uint64_t>(J); }, 60.0);
+  robot.stop();
+  r.counters = drv.counters();
+  const drivers::EmulatorStats& st = robot.stats();
+  r.emu = {st.syncs.load(), st.replies_sent.load(), st.replies_dropped.load(),
+           st.replies_corrupted.load(), st.commands.load(), st.torque_off_cmds.load(),
+           st.lifetime_expired.load(), st.rx_errors.load()};
+  r.plant = robot.plant().progress();
+  r.plant_t = r.plant.t;
+  r.speed = robot.plant().forward_speed(2.0);
+  r.all_modules_off = true;
+  for (int j = 0; j < J; ++j) r.all_modules_off = r.all_modules_off && robot.bank().torque_off(j);
+  r.report = robot.report();
+  return r;
+}
+
+// The runtime with the real driver of s.transport against the virtual robot (real time): CAN
+// over a SOCK_SEQPACKET socket pair carrying can_frame / canfd_frame records, serial over a pty.
+inline WalkResult walk_bus(const WalkSetup& s, const model::Scene& scene,
+                           const drivers::FaultConfig& faults = {}) {
+  const config::DaemonConfig cfg = daemon_config(s, scene);
+  const vrobot::VirtualRobotOptions vo = robot_options(s, faults);
+  if (s.transport == Transport::kSerial) {
+    vrobot::Pty pty = vrobot::open_pty();
+    vrobot::VirtualRobot robot(scene, pty.master, vo);
+    drivers::SerialDriver drv(drivers::open_serial_port(pty.slave_path, cfg.driver.serial.baud),
+                              cfg.driver.serial);
+    WalkResult r = run_walk(cfg, robot, drv);
+    ::close(pty.slave_keep);
+    return r;
+  }
+  int sv[2];
+  if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, sv) != 0)
+    throw std::system_error(errno, std::generic_category(), "socketpair");
+  vrobot::VirtualRobot robot(scene, sv[0], vo);
+  drivers::SocketCanDriver drv(sv[1], cfg.driver.can);
+  return run_walk(cfg, robot, drv);
+}
+
+// The deterministic part of a bus, in lockstep: read() is a SYNC at the loop's time (the modules
+// integrate the plant to it, sample, and apply the command latched since the previous SYNC), the
+// sample goes through the CAN feedback codec, write() sends the command through the CAN FD command
+// codec (quantization of τ, β_ref, β̇_ref, kp, kd) and latches it. With delay = false the command
+// takes effect at once (a second SYNC at the same instant: the plant does not move), i.e. only the
+// quantization differs from the in-process simulated plant. No loss, no latency, no jitter.
+class BusModelDriver final : public drivers::Driver {
+ public:
+  BusModelDriver(vrobot::SimulationPlant& plant, bool delay) : plant_(plant), delay_(delay),
+      bank_(config(plant.joints()), plant) {}
+  int joints() const override { return bank_.joints(); }
+  drivers::IoStatus read(std::int64_t now_ns, std::int64_t, drivers::Feedback& out) override {
+    now_ = now_ns;
+    bank_.on_sync(++counter_, now_ns);
+    const drivers::Feedback& s = bank_.sample();
+    out.joints = bank_.joints();
+    out.seq = ++seq_;
+    out.stamp_ns = now_ns;
+    for (int j = 0; j < bank_.joints(); ++j) {
+      const auto k = static_cast<std::size_t>(j);
+      can_frame f{};
+      drivers::can::encode_feedback(drivers::can::node_of_joint(j),
+                                    {s.beta[k], s.beta_dot[k], s.deflection[k], s.status[k], counter_}, f);
+      int node = 0;
+      drivers::can::ModuleFeedback m{};
+      if (drivers::can::decode_feedback(f, node, m) != drivers::can::CodecStatus::kOk) return drivers::IoStatus::kBusError;
+      out.beta[k] = m.beta;
+      out.beta_dot[k] = m.beta_dot;
+      out.deflection[k] = m.deflection;
+      out.status[k] = m.status;
+    }
+    return drivers::IoStatus::kOk;
+  }
+  drivers::IoStatus write(const drivers::Command& cmd) override {
+    namespace can = drivers::can;
+    for (int g = 0; g * can::kFdJointsPerFrame < bank_.joints(); ++g) {
+      can::FdCommandGroup grp{};
+      grp.group = g;
+      grp.count = std::min(can::kFdJointsPerFrame, bank_.joints() - g * can::kFdJointsPerFrame);
+      grp.counter = counter_;
+      grp.torque_off = cmd.torque_off;
+      for (int k = 0; k < grp.count; ++k) {
+        const auto j = static_cast<std::size_t>(g * can::kFdJointsPerFrame + k);
+        grp.joint[static_cast<std::size_t>(k)] = {cmd.tau[j], cmd.beta_ref[j], cmd.beta_dot_ref[j],
+                                                  cmd.kp[j], cmd.kd[j]};
+      }
+      canfd_frame f{};
+      can::FdCommandGroup back{};
+      if (can::encode_fd_command(grp, f) == can::CodecStatus::kNotFinite ||
+          can::decode_fd_command(f, back) != can::CodecStatus::kOk)
+        return drivers::IoStatus::kBusError;
+      for (int k = 0; k < back.count; ++k) {
+        const can::FdJointCommand& c = back.joint[static_cast<std::size_t>(k)];
+        bank_.latch(g * can::kFdJointsPerFrame + k, c.tau, c.beta_ref, c.beta_dot_ref, true, c.kp,
+                    c.kd, back.torque_off, now_);
+      }
+    }
+    if (!delay_) bank_.on_sync(++counter_, now_);  // same instant: apply now
+    return drivers::IoStatus::kOk;
+  }
+  void safe_stop() override {
+    for (int j = 0; j < bank_.joints(); ++j) bank_.latch(j, 0, 0, 0, true, 0, 0, true, now_);
+  }
+  const drivers::DriverCounters& counters() const override { return counters_; }
+
+ private:
+  static drivers::EmulatorConfig config(int joints) {
+    drivers::EmulatorConfig c;
+    c.joints = joints;
+    c.fd = true;
+    return c;
+  }
+  vrobot::SimulationPlant& plant_;
+  bool delay_;
+  drivers::ModuleBank bank_;
+  drivers::DriverCounters counters_{};
+  std::uint8_t counter_ = 0;
+  std::uint64_t seq_ = 0;
+  std::int64_t now_ = 0;
+};
+
+// The runtime (lockstep loop clock) against the bus model: deterministic.
+inline WalkResult walk_bus_model(WalkSetup s, const model::Scene& scene, bool delay) {
+  s.lockstep = true;
+  if (s.transport == Transport::kSim) s.transport = Transport::kCanFd;
+  vrobot::PlantOptions po;
+  po.record_capacity = static_cast<std::size_t>(s.duration * 100 * 2) + 1000;
+  vrobot::SimulationPlant plant(scene, po);
+  BusModelDriver drv(plant, delay);
+  WalkResult r;
+  r.daemon = app::run_daemon(daemon_config(s, scene), quiet(&drv));
+  r.plant = plant.progress();
+  r.plant_t = r.plant.t;
+  r.speed = plant.forward_speed(2.0);
+  return r;
+}
+
+}  // namespace pedalwave::test

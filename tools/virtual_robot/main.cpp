@@ -1,0 +1,204 @@
+// pedalwave_virtual_robot — a scene's plant model answering as the robot's modules would, on a CAN
+// interface or on the far end of a pseudo-terminal, in real time, until Ctrl-C (or --duration).
+//
+//   pedalwave_virtual_robot --scene config/scenes/flat_high_friction.yaml --can vcan0 [--fd]
+//   pedalwave_virtual_robot --scene config/scenes/flat_high_friction.yaml --pty [--link PATH]
+//       [--latency ms] [--loss p] [--bit-error p] [--silent J]... [--counter-fault J:repeat]...
+//       [--fault-onset SYNC] [--command-timeout ms] [--seed n] [--h s] [--max-gap s]
+//       [--duration s] [--status s]
+//
+// --pty prints "pty: /dev/pts/N" (and makes the --link symlink): give that path to the runtime's
+// serial driver (driver.device). Plant time starts at the first SYNC. Prints what it did (frames,
+// faults injected, plant time, COM distance) at exit. Exit codes: 0 done; 2 bad input (scene,
+// option); 1 the transport could not be opened (e.g. no PF_CAN on this kernel).
+#include <CLI/CLI.hpp>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "pedalwave/config/scene.hpp"
+#include "pedalwave/vrobot/virtual_robot.hpp"
+
+namespace {
+
+std::atomic<int> g_signal{0};
+extern "C" void on_signal(int s) { g_signal.store(s); }
+
+int bad_input(const std::string& what) {
+  std::cerr << "pedalwave_virtual_robot: error: " << what << '\n';
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  namespace vr = pedalwave::vrobot;
+  namespace pd = pedalwave::drivers;
+
+  CLI::App app{"pedalwave_virtual_robot: run a scene's plant model and answer as the robot's SEA "
+               "modules would (drivers/PROTOCOL.md), on a CAN interface or a pseudo-terminal"};
+  std::string scene_path, can_if, link;
+  bool fd = false, pty = false;
+  double latency_ms = 0.0, loss = 0.0, bit_error = 0.0, timeout_ms = 50.0, duration = 0.0,
+         status_every = 0.0, max_gap = 1.0;
+  std::vector<int> silent;
+  std::vector<std::string> counter_faults;
+  std::uint64_t onset = 1;
+  std::uint32_t seed = 1;
+  double h = 0.0;
+  app.add_option("--scene", scene_path, "scene file (YAML), e.g. config/scenes/flat_high_friction.yaml")
+      ->required();
+  auto* o_can = app.add_option("--can", can_if, "CAN interface the modules are on (e.g. vcan0, can0)");
+  auto* o_pty = app.add_flag("--pty", pty, "serve a DYNAMIXEL 2.0 bus on a new pseudo-terminal; "
+                             "prints its slave path");
+  o_can->excludes(o_pty);
+  app.add_flag("--fd", fd, "CAN FD frame set (command groups, FD replies); needs MTU 72");
+  app.add_option("--link", link, "with --pty: also make this symlink to the slave path");
+  app.add_option("--latency", latency_ms, "reply latency after SYNC / Sync Read [ms]")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  app.add_option("--loss", loss, "probability that a reply is not sent [0, 1]")
+      ->check(CLI::Range(0.0, 1.0))->capture_default_str();
+  app.add_option("--bit-error", bit_error, "probability that one bit of a reply is flipped [0, 1]")
+      ->check(CLI::Range(0.0, 1.0))->capture_default_str();
+  app.add_option("--silent", silent, "joint (1…N-1) whose module stops answering (repeatable)");
+  app.add_option("--counter-fault", counter_faults,
+                 "J:repeat or J:backwards — module J's echoed SYNC counter repeats / goes backwards");
+  app.add_option("--fault-onset", onset, "faults act from this SYNC number on (1 = the first)")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--command-timeout", timeout_ms, "command lifetime before a module turns its "
+                 "output off [ms]")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--seed", seed, "random seed of the injected loss / bit errors")->capture_default_str();
+  app.add_option("--max-gap", max_gap, "a SYNC gap longer than this is not integrated (the plant "
+                 "waits while no host talks) [s]")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--h", h, "integrator step override [s] (default: the scene's; a slow machine, "
+                 "e.g. the emulated test VM, needs a larger step to integrate in real time)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--duration", duration, "stop after this long [s] (0 = until Ctrl-C)")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  app.add_option("--status", status_every, "print a progress line every this many seconds (0 = off)")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);  // prints the help or the error
+    return rc == 0 ? 0 : 2;
+  }
+  if (can_if.empty() && !pty) return bad_input("give the bus: --can IFNAME [--fd] or --pty");
+  if (fd && pty) return bad_input("--fd is a CAN option; the serial bus (--pty) has no FD frames");
+
+  pedalwave::model::Scene scene;
+  try {
+    scene = pedalwave::config::load_scene(scene_path);
+  } catch (const std::exception& e) {
+    return bad_input(e.what());
+  }
+  if (h > 0) scene.integrator.h = h;
+  const int joints = scene.robot.N - 1;
+
+  vr::VirtualRobotOptions opt;
+  opt.bus = pty ? vr::Bus::kSerial : vr::Bus::kCan;
+  opt.emulator.fd = fd;
+  opt.emulator.command_timeout_ns = static_cast<std::int64_t>(timeout_ms * 1e6);
+  pd::FaultConfig& f = opt.emulator.faults;
+  f.reply_latency_ns = static_cast<std::int64_t>(latency_ms * 1e6);
+  f.frame_loss = loss;
+  f.bit_error = bit_error;
+  f.onset_sync = onset;
+  f.seed = seed;
+  for (int j : silent) {
+    if (j < 1 || j > joints)
+      return bad_input("--silent " + std::to_string(j) + ": expected a joint 1…" + std::to_string(joints));
+    f.module[static_cast<std::size_t>(j - 1)].silent = true;
+  }
+  for (const std::string& c : counter_faults) {
+    const auto colon = c.find(':');
+    int j = 0;
+    try {
+      j = colon == std::string::npos ? 0 : std::stoi(c.substr(0, colon));
+    } catch (const std::exception&) {
+      j = 0;
+    }
+    const std::string kind = colon == std::string::npos ? "" : c.substr(colon + 1);
+    if (j < 1 || j > joints || (kind != "repeat" && kind != "backwards"))
+      return bad_input("--counter-fault " + c + ": expected J:repeat or J:backwards with J in 1…" +
+                       std::to_string(joints));
+    f.module[static_cast<std::size_t>(j - 1)].counter =
+        kind == "repeat" ? pd::CounterFault::kRepeat : pd::CounterFault::kBackwards;
+  }
+  opt.plant.max_gap = max_gap;
+  opt.plant.record_period = 0;  // the CLI reports progress only
+
+  // The transport.
+  int bus_fd = -1;
+  vr::Pty p;
+  try {
+    if (pty) {
+      p = vr::open_pty();
+      bus_fd = p.master;
+    } else {
+      bus_fd = vr::open_module_can_socket(can_if, fd);
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "pedalwave_virtual_robot: " << e.what() << '\n';
+    return 1;
+  }
+  std::unique_ptr<vr::VirtualRobot> robot;
+  try {
+    robot = std::make_unique<vr::VirtualRobot>(scene, bus_fd, opt);
+  } catch (const std::exception& e) {
+    if (p.slave_keep >= 0) ::close(p.slave_keep);
+    return bad_input(e.what());
+  }
+  if (pty && !link.empty()) {
+    ::unlink(link.c_str());
+    if (::symlink(p.slave_path.c_str(), link.c_str()) != 0) {
+      std::perror(("pedalwave_virtual_robot: symlink " + link).c_str());
+      return 1;
+    }
+  }
+
+  std::printf("virtual robot: scene '%s', %d modules (%s), integrator step %g s\n",
+              scene.name.c_str(), joints,
+              pty ? "serial, DYNAMIXEL 2.0" : (fd ? "CAN FD" : "classic CAN"), scene.integrator.h);
+  if (pty) std::printf("pty: %s%s%s\n", p.slave_path.c_str(), link.empty() ? "" : " (link ", link.empty() ? "" : (link + ")").c_str());
+  else std::printf("can: %s\n", can_if.c_str());
+  std::printf("waiting for the host's SYNC; Ctrl-C to stop\n");
+  std::fflush(stdout);
+
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  robot->start();
+  const auto t0 = std::chrono::steady_clock::now();
+  auto next_status = t0 + std::chrono::duration<double>(status_every);
+  while (g_signal.load() == 0) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    const auto now = std::chrono::steady_clock::now();
+    if (duration > 0 && now - t0 >= std::chrono::duration<double>(duration)) break;
+    if (status_every > 0 && now >= next_status) {
+      next_status += std::chrono::duration<double>(status_every);
+      const vr::PlantProgress pr = robot->plant().progress();
+      std::printf("  t = %.2f s, COM x = %.4f m, SYNCs %llu, replies %llu, commands %llu%s\n", pr.t,
+                  pr.com_x, static_cast<unsigned long long>(robot->stats().syncs.load()),
+                  static_cast<unsigned long long>(robot->stats().replies_sent.load()),
+                  static_cast<unsigned long long>(robot->stats().commands.load()),
+                  pr.all_off ? " (outputs off)" : "");
+      std::fflush(stdout);
+    }
+  }
+  robot->stop();
+  const vr::PlantProgress pr = robot->plant().progress();
+  std::printf("%s", robot->report().c_str());
+  if (pr.t > 0)
+    std::printf("  COM moved %.4f m in %.2f s of plant time: %.3f cm/s on average\n",
+                pr.com_x - pr.com_x0, pr.t, 100.0 * (pr.com_x - pr.com_x0) / pr.t);
+  if (p.slave_keep >= 0) ::close(p.slave_keep);
+  if (pty && !link.empty()) ::unlink(link.c_str());
+  return 0;
+}

@@ -1,0 +1,146 @@
+#include "pedalwave/vrobot/virtual_robot.hpp"
+
+#include <fcntl.h>
+#include <linux/can.h>
+#include <stdlib.h>
+#include <sys/socket.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <system_error>
+
+#include "pedalwave/drivers/can_protocol.hpp"
+#include "pedalwave/drivers/socketcan_driver.hpp"
+
+namespace pedalwave::vrobot {
+
+VirtualRobot::VirtualRobot(const model::Scene& scene, int fd, const VirtualRobotOptions& opt)
+    : opt_(opt), fd_(fd) {
+  try {
+    plant_ = std::make_unique<SimulationPlant>(scene, opt_.plant);
+    opt_.emulator.joints = plant_->joints();
+    if (opt_.bus == Bus::kCan)
+      can_ = std::make_unique<drivers::CanModuleEmulator>(fd_, opt_.emulator, *plant_);
+    else
+      serial_ = std::make_unique<drivers::SerialModuleEmulator>(fd_, opt_.emulator, *plant_);
+  } catch (...) {
+    if (fd_ >= 0) ::close(fd_);
+    throw;
+  }
+}
+
+VirtualRobot::~VirtualRobot() {
+  stop();
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void VirtualRobot::start() {
+  if (thread_.joinable()) return;
+  stop_.store(false);
+  thread_ = std::thread([this] {
+    if (can_) can_->run(stop_);
+    else serial_->run(stop_);
+  });
+}
+
+void VirtualRobot::stop() {
+  stop_.store(true);
+  if (thread_.joinable()) thread_.join();
+}
+
+drivers::ModuleBank& VirtualRobot::bank() { return can_ ? can_->bank() : serial_->bank(); }
+
+const drivers::EmulatorStats& VirtualRobot::stats() { return can_ ? can_->stats() : serial_->stats(); }
+
+std::string VirtualRobot::report() {
+  const drivers::EmulatorStats& s = stats();
+  const PlantProgress p = plant_->progress();
+  const drivers::FaultConfig& f = opt_.emulator.faults;
+  std::ostringstream o;
+  o << "virtual robot: " << joints() << " modules on "
+    << (opt_.bus == Bus::kCan ? (opt_.emulator.fd ? "CAN FD" : "classic CAN") : "serial (DYNAMIXEL 2.0)")
+    << "\n";
+  o << "  SYNCs " << s.syncs.load() << ", replies sent " << s.replies_sent.load()
+    << ", commands latched " << s.commands.load() << " (torque-off " << s.torque_off_cmds.load()
+    << "), malformed/CRC-failed frames received " << s.rx_errors.load() << "\n";
+  o << "  faults injected: replies dropped " << s.replies_dropped.load() << ", corrupted "
+    << s.replies_corrupted.load() << ", command lifetime expired " << s.lifetime_expired.load();
+  o << " (latency " << static_cast<double>(f.reply_latency_ns) * 1e-6 << " ms, loss " << f.frame_loss
+    << ", bit errors " << f.bit_error;
+  int n_silent = 0;
+  for (int j = 0; j < joints(); ++j)
+    if (f.module[static_cast<std::size_t>(j)].silent)
+      o << (n_silent++ == 0 ? ", silent module(s) " : ",") << j + 1;
+  o << ", from SYNC " << f.onset_sync << ")\n";
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "  plant: %.3f s simulated in %llu steps, COM x %.4f m, %s%s", p.t,
+                static_cast<unsigned long long>(p.steps), p.com_x,
+                p.all_off ? "outputs off" : "outputs on", p.failed ? ", PLANT FAILED" : "");
+  o << line;
+  if (p.gaps_skipped > 0) o << ", " << p.gaps_skipped << " idle gap(s) of " << p.gap_time_skipped << " s not integrated";
+  o << "\n";
+  return o.str();
+}
+
+Pty open_pty() {
+  Pty p;
+  p.master = ::posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
+  if (p.master < 0) throw std::system_error(errno, std::generic_category(), "posix_openpt");
+  std::array<char, 128> name{};
+  if (::grantpt(p.master) != 0 || ::unlockpt(p.master) != 0 ||
+      ::ptsname_r(p.master, name.data(), name.size()) != 0) {
+    const int e = errno;
+    ::close(p.master);
+    throw std::system_error(e, std::generic_category(), "pty: grantpt/unlockpt/ptsname");
+  }
+  p.slave_path = name.data();
+  p.slave_keep = ::open(p.slave_path.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC | O_NONBLOCK);
+  termios tio{};
+  if (p.slave_keep < 0 || ::tcgetattr(p.slave_keep, &tio) != 0) {
+    const int e = errno;
+    if (p.slave_keep >= 0) ::close(p.slave_keep);
+    ::close(p.master);
+    throw std::system_error(e, std::generic_category(), "pty: open " + p.slave_path);
+  }
+  ::cfmakeraw(&tio);
+  tio.c_cc[VMIN] = 0;
+  tio.c_cc[VTIME] = 0;
+  if (::tcsetattr(p.slave_keep, TCSANOW, &tio) != 0) {
+    const int e = errno;
+    ::close(p.slave_keep);
+    ::close(p.master);
+    throw std::system_error(e, std::generic_category(), "pty: raw mode on " + p.slave_path);
+  }
+  return p;
+}
+
+int open_module_can_socket(const std::string& ifname, bool fd_frames) {
+  namespace can = drivers::can;
+  // SYNC exactly; 0x200…0x2FF (commands 0x201… and FD command groups 0x280…); 0x300…0x33F (gains).
+  static const std::array<can_filter, 3> filters{{
+      {can::kSyncId, CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG},
+      {can::kCommandBase, 0x700u | CAN_EFF_FLAG | CAN_RTR_FLAG},
+      {can::kGainsBase, 0x7C0u | CAN_EFF_FLAG | CAN_RTR_FLAG},
+  }};
+  drivers::CanSocketOptions o;
+  o.ifname = ifname;
+  o.fd_frames = fd_frames;
+  o.filters = filters;
+  o.error_frames = false;
+  o.timestamps = false;
+  const int fd = drivers::open_can_socket(o);
+  // A large receive queue: when the modules' thread is not scheduled for a while (a loaded or
+  // emulated machine) the host's frames wait instead of being dropped (root may exceed rmem_max).
+  const int bytes = 4 << 20;
+  if (::setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &bytes, sizeof bytes) != 0)
+    (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &bytes, sizeof bytes);
+  return fd;
+}
+
+}  // namespace pedalwave::vrobot

@@ -255,6 +255,9 @@ void FaultObserver::residual_step(const Feedback& fb, const Command& cmd, int j,
   // than the trapezoid follows: no consistency verdicts for a few cycles.
   if (std::abs(cmd.beta_dot_ref[k] - s.prev_ref_rate) > p_.command_step || cmd.torque_off)
     s.cmd_settle = p_.command_settle;
+  // After an overrun the gap spans skipped periods: the trapezoid is no longer exact over it and
+  // the module's set-points moved meanwhile — pause the verdicts as for a command step.
+  if (dt > 1.5 * p_.period) s.cmd_settle = p_.command_settle;
   s.prev_ref_rate = cmd.beta_dot_ref[k];
   const bool settled = elapsed_ >= p_.settle;
   if (s.cmd_settle > 0) {

@@ -4,7 +4,7 @@
 set -euo pipefail
 pkgs=(cmake ninja-build g++ clang libeigen3-dev libspdlog-dev libyaml-cpp-dev libcli11-dev
       libgtest-dev libgmock-dev libbenchmark-dev cyclonedds-dev cyclonedds-tools rt-tests
-      librsvg2-bin can-utils)
+      librsvg2-bin can-utils libclang-rt-14-dev)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

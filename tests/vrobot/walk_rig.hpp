@@ -70,6 +70,7 @@ struct WalkSetup {
   double h = 0.0;              // kSim: integrator step override [s]; 0 = the scene's
   double command_timeout = 0.05;  // modules' command lifetime [s]
   int cpu = -1;                // pin the loop thread to this CPU; −1 = no pinning
+  bool observer = false;       // the onboard observer in the cycle (see vrobot_walk_test.cpp)
 };
 
 // The daemon configuration of `s`, in the YAML the daemon reads (config/runtime/*.yaml): only the
@@ -95,10 +96,11 @@ inline config::DaemonConfig daemon_config(const WalkSetup& s, const model::Scene
                 "name: vrobot-%s\nrate_hz: %g\nduration: %g\nrobot: {N: %d}\ndriver: %s\n"
                 "controller: {k_c: %g, pd_placement: module}\n"
                 "realtime: {clock: %s, stale_timeout: %g, read_budget: %g, cpu: %d}\n"
-                "observer: {enabled: true}\n"
+                "observer: {enabled: %s}\n"
                 "telemetry: {enabled: false}\n",
                 name(s.transport), s.rate_hz, s.duration, scene.robot.N, driver.c_str(), s.k_c,
-                s.lockstep ? "lockstep" : "realtime", s.stale_timeout, s.read_budget, s.cpu);
+                s.lockstep ? "lockstep" : "realtime", s.stale_timeout, s.read_budget, s.cpu,
+                s.observer ? "true" : "false");
   config::DaemonConfig c =
       config::parse_daemon_config(yaml, std::string("vrobot-") + name(s.transport) + ".yaml",
                                   PEDALWAVE_CONFIG_DIR "/runtime");

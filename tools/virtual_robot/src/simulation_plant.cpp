@@ -110,10 +110,10 @@ void SimulationPlant::advance_to(std::int64_t t_ns) {
     origin_ns_ = t_ns - static_cast<std::int64_t>(std::llround(s.t() * 1e9));
     return;
   }
-  if (fixed_step_) target = std::round(target / h_) * h_;
   if (target <= s.t() + 1e-12) return;
+  // Plant steps of h up to the SYNC, the last one shortened so the sample is taken at the SYNC.
   const std::uint64_t steps = fixed_step_
-      ? static_cast<std::uint64_t>(std::llround((target - s.t()) / h_)) : 1u;
+      ? static_cast<std::uint64_t>(std::ceil((target - s.t()) / h_ - 1e-9)) : 1u;
   const model::StepStatus st = s.advance_to(target);
   steps_.fetch_add(steps, kRelaxed);
   if (st != model::StepStatus::kOk) status_.store(static_cast<int>(st));

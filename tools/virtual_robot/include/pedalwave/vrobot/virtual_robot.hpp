@@ -5,7 +5,7 @@
 //   SimulationPlant   drivers::ModulePlant over model::Simulation: Command → ActuatorInput (the
 //                     plant applies the module-side PD law u = τ + kp (β_ref − β) + kd (β̇_ref − β̇)
 //                     at every integrator evaluation, i.e. at the module's own rate), measure →
-//                     Feedback (the scene's sensor model), advance_to(t_ns) in whole plant steps.
+//                     Feedback (the scene's sensor model), advance_to(t_ns) in plant steps.
 //   VirtualRobot      a SimulationPlant + the drivers' CAN or serial module emulator (fault
 //                     injection: latency, frame loss, bit errors, silent modules) on its own thread.
 //   open_pty(), open_module_can_socket()   the transports the CLI offers.
@@ -52,9 +52,9 @@ struct PlantProgress {
 
 // drivers::ModulePlant over a model::Simulation of `scene`.
 // Time: plant time 0 is the first advance_to() (the first SYNC); afterwards
-//   t_plant = (t_ns − origin_ns)·1e-9, rounded to a whole number of plant steps h for fixed-step
-//   integrators (so the sample taken at a SYNC is at most h/2 away from the SYNC time), exact for
-//   adaptive ones. Time never goes backwards (an earlier t_ns is a no-op).
+//   t_plant = (t_ns − origin_ns)·1e-9 exactly: fixed-step integrators take steps of h and a last,
+//   shorter one, so every sample is taken at its SYNC's arrival time (a real module samples when
+//   the SYNC arrives). Time never goes backwards (an earlier t_ns is a no-op).
 // measure(): the scene's sensor model (noise/quantization when switched on); status bits:
 //   kStatusSaturated when a torque limit is on and |u_j| reached it; kStatusEncoderFault on every
 //   joint once the plant has failed (it stays frozen; the host must fault).
@@ -88,8 +88,8 @@ class SimulationPlant final : public drivers::ModulePlant {
   std::unique_ptr<model::Simulation> sim_;
   model::Data data_;
   int joints_ = 0;
-  bool fixed_step_ = true;
-  double h_ = 0.0;
+  bool fixed_step_ = true;          // fixed-step integrator (steps of h_)
+  double h_ = 0.0;                  // its step [s]
   model::Measurement meas_;
   Eigen::VectorXd u_;
   bool started_ = false;

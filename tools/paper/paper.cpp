@@ -40,7 +40,11 @@ std::string fixed(double v, int decimals) {
   os << std::fixed << std::setprecision(decimals) << v;
   return os.str();
 }
-std::string cms(double v) { return std::isnan(v) ? "—" : fixed(v * 100.0, 2) + " cm/s"; }
+// Speed in cm/s: 2 decimals, 3 below 1 cm/s (the stair's stuck runs differ in the third).
+std::string cms(double v) {
+  if (std::isnan(v)) return "—";
+  return fixed(v * 100.0, std::abs(v) < 0.01 ? 3 : 2) + " cm/s";
+}
 std::string pct(double v) {
   if (std::isnan(v)) return "—";
   return (v >= 0 ? "+" : "") + fixed(v * 100.0, 1) + " %";

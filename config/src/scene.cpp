@@ -105,7 +105,7 @@ Scene read_scene(const Reader& r) {
     if (!os.is_sequence()) os.fail("a list of boxes");
     for (std::size_t i = 0; i < os.size(); ++i) {
       const Reader b = os.at(i);
-      b.allow_only({"type", "x_near", "ahead_of_head", "width", "height", "mu", "corner_contact"});
+      b.allow_only({"type", "x_near", "ahead_of_head", "width", "height", "mu", "corner_contact", "edge_mu"});
       b.choice("type", "box", {"box"});
       Box box;
       if (b.has("x_near") == b.has("ahead_of_head"))
@@ -116,6 +116,7 @@ Scene read_scene(const Reader& r) {
       box.height = b.positive("height", box.height);
       box.mu = b.non_negative("mu", box.mu);
       box.corner_contact = b.boolean("corner_contact", true);
+      if (b.has("edge_mu")) box.edge_mu = b.non_negative("edge_mu", box.mu);  // absent: mu
       s.boxes.push_back(box);
     }
   }

@@ -1,8 +1,47 @@
 #include "pedalwave/model/dynamics.hpp"
 
+#include <cmath>
+
 namespace pedalwave::model {
 
-void compute_mass_matrix(const Model& m, Data& d) {
+namespace {
+
+// In-place lower Cholesky of the leading n×n block of A (the upper triangle is left as it was).
+// Plain loops: at n = N + 2 ≈ 8 they beat a general blocked factorization several times over.
+bool cholesky_in_place(MatrixXd& A, int n) {
+  for (int j = 0; j < n; ++j) {
+    double d = A(j, j);
+    for (int k = 0; k < j; ++k) d -= A(j, k) * A(j, k);
+    if (!(d > 0.0)) return false;  // also catches NaN
+    d = std::sqrt(d);
+    A(j, j) = d;
+    const double inv = 1.0 / d;
+    for (int i = j + 1; i < n; ++i) {
+      double s = A(i, j);
+      for (int k = 0; k < j; ++k) s -= A(i, k) * A(j, k);
+      A(i, j) = s * inv;
+    }
+  }
+  return true;
+}
+
+// Solve L Lᵀ x = b in place (L the lower factor in the leading n×n block).
+void cholesky_solve(const MatrixXd& L, int n, Eigen::Ref<VectorXd> b) {
+  for (int i = 0; i < n; ++i) {
+    double s = b(i);
+    for (int k = 0; k < i; ++k) s -= L(i, k) * b(k);
+    b(i) = s / L(i, i);
+  }
+  for (int i = n - 1; i >= 0; --i) {
+    double s = b(i);
+    for (int k = i + 1; k < n; ++k) s -= L(k, i) * b(k);
+    b(i) = s / L(i, i);
+  }
+}
+
+}  // namespace
+
+void factor_mass(const Model& m, Data& d) {
   const int N = m.N();
   const double I_l = m.params().I_l;
   auto& Mz = d.Mz;
@@ -20,13 +59,19 @@ void compute_mass_matrix(const Model& m, Data& d) {
   }
   Mz(N, N) = Mz(N + 1, N + 1) = m.total_mass();
   Mz(N, N + 1) = Mz(N + 1, N) = 0.0;
-  // q_1 coordinates: Tᵀ Mz T, then the rotors' spin inertia I_r Lᵀ L on all of q.
+  // q_1 coordinates: Tᵀ Mz T.
   apply_T_right(N, Mz);
   apply_Tt_left(N, Mz);
+  // Factor the Schur complement of the (constant, diagonal) motor block: Tᵀ Mz T + spin_schur.
+  d.chol = Mz + m.spin_schur();
+  d.mass_valid = cholesky_in_place(d.chol, m.nq1());
+}
+
+void compute_mass_matrix(const Model& m, Data& d) {
+  factor_mass(m, d);
+  // The rotors' spin inertia I_r Lᵀ L on all of q.
   d.M = m.M_spin();
-  d.M.topLeftCorner(m.nq1(), m.nq1()) += Mz;
-  d.llt.compute(d.M);
-  d.mass_valid = d.llt.info() == Eigen::Success;
+  d.M.topLeftCorner(m.nq1(), m.nq1()) += d.Mz;
 }
 
 void compute_bias(const Model& m, Data& d, const Eigen::Ref<const VectorXd>& q) {
@@ -78,7 +123,7 @@ bool forward_dynamics(const Model& m, Data& d, const Eigen::Ref<const VectorXd>&
                       const Eigen::Ref<const VectorXd>& qd, const Eigen::Ref<const VectorXd>& u,
                       const Eigen::Ref<const VectorXd>& Q, Eigen::Ref<VectorXd> qdd) {
   update_kinematics(m, d, q, qd);
-  compute_mass_matrix(m, d);
+  factor_mass(m, d);
   if (!d.mass_valid) return false;
   compute_bias(m, d, q);
   d.rhs = -d.bias;
@@ -86,12 +131,29 @@ bool forward_dynamics(const Model& m, Data& d, const Eigen::Ref<const VectorXd>&
   // Motor torques act on β (flexible) or directly on α (rigid).
   const int first = m.flexible() ? m.i_beta(0) : m.i_alpha(0);
   if (u.size() > 0) d.rhs.segment(first, m.joints()) += u;
-  d.llt.solveInPlace(d.rhs);
+  solve_mass(m, d, d.rhs);
   qdd = d.rhs;
   return true;
 }
 
-void solve_mass(const Data& d, Eigen::Ref<VectorXd> b) { d.llt.solveInPlace(b); }
+void solve_mass(const Model& m, const Data& d, Eigen::Ref<VectorXd> b) {
+  const int n1 = m.nq1(), J = m.flexible() ? m.joints() : 0;
+  // M = [A, S12; S21, D] with D diagonal: (A − S12 D⁻¹ S21) x_1 = b_1 − S12 D⁻¹ b_β, then
+  // x_β = D⁻¹ b_β − (S12 D⁻¹)ᵀ x_1. C = S12 D⁻¹ is constant (Model::spin_coupling).
+  const auto& C = m.spin_coupling();
+  for (int j = 0; j < J; ++j) {
+    const double bb = b(n1 + j);
+    if (bb != 0.0)
+      for (int i = 0; i < n1; ++i) b(i) -= C(i, j) * bb;
+  }
+  cholesky_solve(d.chol, n1, b.head(n1));
+  const auto& dinv = m.motor_inertia_inv();
+  for (int j = 0; j < J; ++j) {
+    double s = dinv(j) * b(n1 + j);
+    for (int i = 0; i < n1; ++i) s -= C(i, j) * b(i);
+    b(n1 + j) = s;
+  }
+}
 
 double kinetic_energy(const Data& d, const Eigen::Ref<const VectorXd>& qd) {
   double e = 0.0;  // ½ q̇ᵀ M q̇ without a temporary

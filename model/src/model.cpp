@@ -1,6 +1,7 @@
 #include "pedalwave/model/model.hpp"
 
 #include <algorithm>
+#include <stdexcept>
 
 namespace pedalwave::model {
 
@@ -43,6 +44,22 @@ Model::Model(const Params& p) : p_(p) {
       L_(j, i_alpha(j)) -= p_.n;  // β ≡ α
   }
   M_spin_ = p_.I_r * L_.transpose() * L_;
+
+  const int n1 = nq1(), J = N - 1;
+  if (flexible()) {
+    const auto S12 = M_spin_.topRightCorner(n1, J);
+    d_inv_ = M_spin_.bottomRightCorner(J, J).diagonal().cwiseInverse();
+    // The motor block must be diagonal (each rotor spins with its own β only).
+    if (!(M_spin_.bottomRightCorner(J, J) - M_spin_.bottomRightCorner(J, J).diagonal().asDiagonal().toDenseMatrix())
+             .isZero(0.0))
+      throw std::logic_error("Model: the motor block of M_spin is not diagonal");
+    spin_c_ = S12 * d_inv_.asDiagonal();
+    spin_schur_ = M_spin_.topLeftCorner(n1, n1) - spin_c_ * S12.transpose();
+  } else {
+    spin_schur_ = M_spin_;
+    spin_c_ = MatrixXd::Zero(n1, 0);
+    d_inv_ = VectorXd::Zero(0);
+  }
 }
 
 Data::Data(const Model& m)
@@ -58,6 +75,6 @@ Data::Data(const Model& m)
       bias(VectorXd::Zero(m.nq())),
       rhs(VectorXd::Zero(m.nq())),
       gz(VectorXd::Zero(m.nq1())),
-      llt(m.nq()) {}
+      chol(MatrixXd::Zero(m.nq1(), m.nq1())) {}
 
 }  // namespace pedalwave::model

@@ -235,7 +235,7 @@ void Plant::contact_forces(const VectorXd& q, const VectorXd& v, Eigen::Ref<Vect
         if (n.dot(c - centre) < 0) n = -n;  // away from the box interior
         const double depth = (c - A).dot(n);
         if (depth <= 0 || depth > cap) continue;
-        add_contact(ka, kb, s, n, depth, b.mu, v, 0.0, -1, Q, jac, report);
+        add_contact(ka, kb, s, n, depth, std::isnan(b.edge_mu) ? b.mu : b.edge_mu, v, 0.0, -1, Q, jac, report);
       }
     }
   }
@@ -287,12 +287,12 @@ bool Plant::acceleration(double, const VectorXd& q, const VectorXd& v, VectorXd&
   Q_.setZero();
   contact_forces(q, v, Q_, nullptr, nullptr);
   fault_forces(q, Q_, nullptr);
-  compute_mass_matrix(m, data_);
+  factor_mass(m, data_);
   if (!data_.mass_valid) return false;
   compute_bias(m, data_, q);
   a = Q_ - data_.bias;
   a.segment(m.flexible() ? m.i_beta(0) : 0, m.joints()) += u_;
-  solve_mass(data_, a);
+  solve_mass(m, data_, a);
   return true;
 }
 

@@ -61,6 +61,7 @@ void validate(const Scene& s) {
     positive(s, key + ".width", s.boxes[i].width);
     positive(s, key + ".height", s.boxes[i].height);
     non_negative(s, key + ".mu", s.boxes[i].mu);
+    if (!std::isnan(s.boxes[i].edge_mu)) non_negative(s, key + ".edge_mu", s.boxes[i].edge_mu);
   }
   if (s.joint_friction_on) non_negative(s, "joint_friction.motor_viscous", s.joint_friction.motor_viscous);
   if (s.torque_limit_on) positive(s, "torque_limit.u_max", s.torque_limit.u_max);

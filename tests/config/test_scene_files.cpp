@@ -2,6 +2,8 @@
 // that name the file, line, key, value and expectation; only the named effects exist.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <filesystem>
 
 #include "pedalwave/config/scene.hpp"
@@ -41,6 +43,11 @@ TEST(SceneFiles, ShippedScenesSayWhatTheyContain) {
   EXPECT_DOUBLE_EQ(stair.boxes[0].height, 0.06);
   EXPECT_DOUBLE_EQ(stair.boxes[0].width, 0.11);
   EXPECT_DOUBLE_EQ(stair.boxes[0].ahead_of_head, 0.05);
+  EXPECT_TRUE(std::isnan(stair.boxes[0].edge_mu)) << "the shipped stair's edge friction is its mu";
+  const auto grip = config::load_scene(PEDALWAVE_CONFIG_DIR "/scenes/stair_grip.yaml");
+  ASSERT_EQ(grip.boxes.size(), 1u);
+  EXPECT_DOUBLE_EQ(grip.boxes[0].mu, 0.82);
+  EXPECT_DOUBLE_EQ(grip.boxes[0].edge_mu, 1.5);
   EXPECT_NEAR(stair.gait.eta, -2 * M_PI / 5, 1e-15);
   // The box is placed 5 cm ahead of the head tip of the initial state.
   model::Plant p(stair);
@@ -83,6 +90,9 @@ TEST(SceneFiles, ErrorsNameFileLineKeyValueAndExpectation) {
 
   e = error_of("ground: {}\nobstacles:\n  - {width: 0.1, height: 0.06}\n");
   EXPECT_NE(e.find("exactly one of x_near"), std::string::npos) << e;
+
+  e = error_of("ground: {}\nobstacles:\n  - {x_near: 0.2, edge_mu: -1}\n");
+  EXPECT_NE(e.find("edge_mu = \"-1\": expected a number >= 0"), std::string::npos) << e;
 
   e = error_of("ground: {friction: sticky}\n");
   EXPECT_NE(e.find("one of coulomb, regularized, tanh, stick_slip"), std::string::npos) << e;

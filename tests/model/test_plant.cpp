@@ -120,6 +120,36 @@ TEST(Plant, BoxCornerPushesALinkCrossingTheEdge) {
   }
 }
 
+// The corner-vs-link contact slides with its own friction coefficient: a link crossing the corner
+// and sliding along itself at 0.1 m/s (≫ v_s) gets |f_T| = μ_edge f_N, μ_edge = edge_mu when set,
+// the box's mu otherwise; the box's faces keep mu.
+TEST(Plant, BoxCornerFrictionUsesEdgeMu) {
+  Scene s = flat_scene();
+  s.robot.N = 2;
+  s.robot.joints = JointModel::kRigid;
+  s.boxes = {Box{.x_near = -0.5, .width = 0.5, .height = 0.06, .mu = 0.82}};
+  const double theta = -0.5, depth = 1e-3, l2 = 2 * s.robot.l;
+  const Vec2 u(std::cos(theta), std::sin(theta)), n(-std::sin(theta), std::cos(theta));
+  const Vec2 tail = Vec2(0.0, 0.06) - 0.25 * l2 * u - depth * n;
+  const Vec2 joint = tail + l2 * u;
+  s.initial.pose = InitialPose::kExplicit;
+  s.initial.q = {0.0, theta, joint.x(), joint.y()};
+  for (const double edge : {std::nan(""), 1.5, 0.0}) {
+    s.boxes[0].edge_mu = edge;
+    Plant p(s);
+    VectorXd q, v;
+    p.initial_state(q, v);
+    v.setZero();
+    v(p.model().i_px()) = 0.1 * u.x();
+    v(p.model().i_pz()) = 0.1 * u.y();
+    ContactReport r;
+    p.report(q, v, r);
+    const double mu = std::isnan(edge) ? 0.82 : edge;
+    ASSERT_GT(r.f_normal.sum(), 0.0);
+    EXPECT_NEAR(std::abs(r.f_tangent.sum()) / r.f_normal.sum(), mu, 1e-9) << "edge_mu " << edge;
+  }
+}
+
 // The implicit scheme's Jacobians match finite differences of the generalized force
 // (contact in the smooth region, springs, module PD).
 TEST(Plant, ImplicitTermsMatchFiniteDifferences) {

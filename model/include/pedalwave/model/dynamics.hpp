@@ -11,7 +11,12 @@
 
 namespace pedalwave::model {
 
-// d.M (and its Cholesky factor) at the q given to the last update_kinematics.
+// Factor M at the q given to the last update_kinematics, without assembling d.M: d.Mz holds the
+// body block Tᵀ Mz T and d.chol the Cholesky factor of its Schur complement (Model::spin_schur);
+// d.mass_valid tells whether M is positive definite. What forward dynamics needs.
+void factor_mass(const Model& m, Data& d);
+
+// factor_mass, and the whole nq×nq d.M assembled (energies, implicit integrators, linearization).
 void compute_mass_matrix(const Model& m, Data& d);
 
 // d.coriolis, d.gravity, d.spring and d.bias at (q, q̇) (after update_kinematics with q̇).
@@ -24,8 +29,9 @@ bool forward_dynamics(const Model& m, Data& d, const Eigen::Ref<const VectorXd>&
                       const Eigen::Ref<const VectorXd>& qd, const Eigen::Ref<const VectorXd>& u,
                       const Eigen::Ref<const VectorXd>& Q, Eigen::Ref<VectorXd> qdd);
 
-// Solve M x = b in place with the current factorization (after compute_mass_matrix).
-void solve_mass(const Data& d, Eigen::Ref<VectorXd> b);
+// Solve M x = b in place with the current factorization (after factor_mass or
+// compute_mass_matrix): the motor block eliminated, (N+2)² Cholesky solve, back-substitution.
+void solve_mass(const Model& m, const Data& d, Eigen::Ref<VectorXd> b);
 
 // Energies [J] (after update_kinematics; kinetic also needs compute_mass_matrix).
 double kinetic_energy(const Data& d, const Eigen::Ref<const VectorXd>& qd);

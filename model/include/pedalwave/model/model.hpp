@@ -63,6 +63,15 @@ class Model {
   const MatrixXd& L() const { return L_; }              // (N-1)×nq rotor spin map θ̇^r = L q̇
   const MatrixXd& M_spin() const { return M_spin_; }    // nq×nq  I_r Lᵀ L [kg·m²]
 
+  // The mass matrix's constant motor block, eliminated once (flexible): with q = [q_1, β],
+  //   M = [Mb + S11, S12; S21, D],  Mb = Tᵀ Mz T (configuration-dependent),  S = M_spin,
+  // D = diag(n² I_r) is diagonal, so M x = b is solved through the (N+2)² Schur complement
+  //   Mb + S11 − S12 D⁻¹ S21  (= Mb + spin_schur(); analytically S11 − S12 D⁻¹ S21 = 0)
+  // and x_β = D⁻¹ b_β − (S12 D⁻¹)ᵀ x_1. Rigid: spin_schur() = M_spin, no motor block.
+  const MatrixXd& spin_schur() const { return spin_schur_; }     // (N+2)² [kg·m²]
+  const MatrixXd& spin_coupling() const { return spin_c_; }      // (N+2)×(N−1)  S12 D⁻¹ [-]
+  const VectorXd& motor_inertia_inv() const { return d_inv_; }   // (N−1)  D⁻¹ [1/(kg·m²)]
+
  private:
   Params p_;
   int nq_;
@@ -74,6 +83,9 @@ class Model {
   VectorXd K_;
   MatrixXd L_;
   MatrixXd M_spin_;
+  MatrixXd spin_schur_;
+  MatrixXd spin_c_;
+  VectorXd d_inv_;
 };
 
 // Workspace: sized once from a Model; every evaluation writes here and allocates nothing.
@@ -93,8 +105,8 @@ struct Data {
   VectorXd bias;        // coriolis + gravity + spring, (nq)
   VectorXd rhs;         // B u + Q − bias, (nq)
   VectorXd gz;          // scratch generalized force in z, (N+2)
-  Eigen::LLT<MatrixXd> llt;  // factorization of M, sized nq
-  bool mass_valid = false;   // M and llt hold the current q
+  MatrixXd chol;        // lower Cholesky factor of the Schur complement (Model::spin_schur), (N+2)²
+  bool mass_valid = false;   // chol factors M at the current q (factor_mass / compute_mass_matrix)
 };
 
 }  // namespace pedalwave::model

@@ -49,6 +49,8 @@ struct Box {
   double height = 0.06;  // [m]
   double mu = 0.82;      // friction on its faces [-]
   bool corner_contact = true;  // test its top corners against the link segments
+  double edge_mu = std::numeric_limits<double>::quiet_NaN();  // friction of those corner-vs-link
+                         // contacts [-] (NaN: mu)
 };
 
 struct JointFriction {

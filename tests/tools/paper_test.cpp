@@ -131,7 +131,7 @@ TEST_F(Paper, AdaptiveGainReachesTheControllerAndZeroKeepsTheNominalEta) {
   paper::RunSpec spec;
   spec.scene = paper::load(s, "stair");
   spec.scene.duration = 3.0;
-  spec.integ = s.integ;
+  spec.integ = paper::integ_of(s, spec.scene);
   spec.sample_every = 0.05;
   const paper::RunResult r0 = paper::run(spec);
   spec.k_c = 10.1;
@@ -156,7 +156,7 @@ TEST_F(Paper, ParallelSweepGivesTheSameNumbersAsSerialAndItsBestIsItsTablesArgma
   o.step = 5.0;  // 0, 5, 10, 15
   o.duration = 4.0;
   o.checks = 1;
-  o.check_h = 5e-4;
+  o.check_h = 1.25e-4;  // finer than the stair scene's 2.5e-4
   const paper::SweepResult serial = paper::sweep(settings(1, "serial"), o);
   const paper::SweepResult parallel = paper::sweep(settings(2, "parallel"), o);
   ASSERT_EQ(serial.points.size(), 4u);
@@ -200,7 +200,8 @@ TEST_F(Paper, AllRunsEndToEndWithEveryTableRowAndFiniteNumbers) {
   for (const char* f : {"paper_table.md", "paper.md", "flat.md", "friction.md", "stair.md", "sweep.md",
                         "sensitivity.md", "sweep.csv", "flat_com.svg", "friction_torque.svg",
                         "stair_shapes_kc0.svg", "stair_shapes_kc10.1.svg", "stair_film_kc0.svg",
-                        "stair_progress.svg", "sweep_speed.svg", "sensitivity_K.svg"})
+                        "stair_progress.svg", "sweep_speed.svg", "sensitivity_K.svg", "stair_grip/stair.md",
+                        "stair_grip/sweep.md", "stair_grip/sweep.csv", "stair_grip/stair_shapes_kc10.1.svg"})
     EXPECT_TRUE(fs::exists(out / f)) << f;
   const std::string table = slurp(out / "paper_table.md");
   const std::vector<std::string> cases{
@@ -208,7 +209,12 @@ TEST_F(Paper, AllRunsEndToEndWithEveryTableRowAndFiniteNumbers) {
       "SEA torque-peak change after the head enters μ = 0.40", "stair, k_c = 10.1: average speed (60 s)",
       "stair, k_c = 0: average speed (60 s)", "stair, k_c = 10.1: climb", "stair, k_c = 0: climb",
       "k_c sweep: best k_c (0 … 15 step 0.1)", "k_c sweep: best over k_c = 0",
-      "stair gain of k_c = 10.1 over k_c = 0", "sweep wall time (151 × 60 s)"};
+      "stair gain of k_c = 10.1 over k_c = 0", "sweep wall time (151 × 60 s)",
+      "stair, edge μ = 1.5 (calibrated), k_c = 10.1: average speed (60 s)",
+      "stair, edge μ = 1.5 (calibrated), k_c = 0: average speed (60 s)",
+      "stair, edge μ = 1.5 (calibrated), k_c = 10.1: climb", "stair, edge μ = 1.5 (calibrated), k_c = 0: climb",
+      "stair, edge μ = 1.5 (calibrated): gain of k_c = 10.1 over 0",
+      "k_c sweep, edge μ = 1.5 (calibrated): best k_c, gain over k_c = 0"};
   std::size_t rows = 0;
   std::istringstream lines(table);
   for (std::string line; std::getline(lines, line);)
@@ -223,7 +229,7 @@ TEST_F(Paper, AllRunsEndToEndWithEveryTableRowAndFiniteNumbers) {
   }
   // A sentence on every difference, and the printed numbers are finite.
   for (const char* n : {"**Flat speed**", "**Friction speed gain**", "**Torque-peak change**", "**Stair**",
-                        "**k_c sweep**"})
+                        "**k_c sweep**", "**Stair with a grippier edge"})
     EXPECT_NE(table.find(n), std::string::npos) << n;
   EXPECT_NE(e.out.find("speed μ = 0.82: "), std::string::npos);
   EXPECT_EQ(e.out.find("nan"), std::string::npos) << e.out;
@@ -235,7 +241,8 @@ TEST_F(Paper, AllRunsEndToEndWithEveryTableRowAndFiniteNumbers) {
 }
 
 TEST_F(Paper, BadInputExitsTwoWithOneLine) {
-  for (const std::string args : {"sweep --step 0", "flat --h 0.01", "flat --integrator magic",
+  for (const std::string args : {"sweep --step 0", "flat --integrator euler --h 0.01", "flat --integrator magic --h 1e-4",
+                                 "flat --h 1e-4", "stair --stair-scene nowhere",
                                  "sensitivity --K 0", "sweep --from 3 --to 1", "nonsense"}) {
     const Exit e = run_exe(args + " --quiet --out '" + (dir_ / "bad").string() + "'");
     EXPECT_EQ(e.code, 2) << args << ": " << e.err;

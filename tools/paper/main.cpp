@@ -4,7 +4,7 @@
 //   pedalwave_paper flat        [--duration 60]
 //   pedalwave_paper friction    [--duration (scene's)]
 //   pedalwave_paper stair       [--duration 60] [--k_c 0 10.1] [--every 1.5] [--heights 0.03 0.04 0.05 0.06]
-//   pedalwave_paper sweep       [--from 0] [--to 15] [--step 0.1] [--duration 60] [--checks 4] [--check-h 2.5e-4]
+//   pedalwave_paper sweep       [--from 0] [--to 15] [--step 0.1] [--duration 60] [--checks 4] [--check-h 1e-4]
 //   pedalwave_paper sensitivity [--K 1 3 10 30 100] [--I_r 1e-8 5e-8 2e-7] [--no-model-options] [--duration 60]
 //   pedalwave_paper all         [--duration 60] [--from --to --step --checks --check-h]
 // Every subcommand also takes --out DIR (default out/paper), --scenes DIR, --jobs N, --integrator
@@ -14,6 +14,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -31,9 +32,10 @@ struct Common {
   std::string out = "out/paper";
   std::string scenes = PEDALWAVE_SCENES_DIR;
   int jobs = paper::default_jobs();
-  std::string integrator = "implicit_velocity";
-  double h = 1e-3;
+  std::string integrator;  // empty: each scene's own
+  double h = 0.0;
   double rate = 1000.0;
+  std::string stair_scene = "stair";
   bool no_plots = false;
   bool quiet = false;
 };
@@ -43,11 +45,16 @@ void add_common(CLI::App* sub, Common& c) {
   sub->add_option("--scenes", c.scenes, "folder of the shipped scene files")->capture_default_str();
   sub->add_option("--jobs", c.jobs, "worker threads for independent runs")->check(CLI::Range(1, 256))
       ->capture_default_str();
-  sub->add_option("--integrator", c.integrator,
-                  "euler | semi_implicit_euler | implicit_velocity | rk4 | dopri45")->capture_default_str();
-  sub->add_option("--h", c.h, "plant integrator step [s] (≤ the control period)")->check(CLI::PositiveNumber)
-      ->capture_default_str();
+  auto* integ = sub->add_option("--integrator", c.integrator,
+                                 "euler | semi_implicit_euler | implicit_velocity | rk4 | dopri45 (default: each "
+                                 "scene's own, the work-precision study's choice)");
+  auto* h = sub->add_option("--h", c.h, "plant integrator step [s] (≤ the control period; with --integrator)")
+                ->check(CLI::PositiveNumber);
+  integ->needs(h);
+  h->needs(integ);
   sub->add_option("--rate", c.rate, "control rate [Hz]")->check(CLI::PositiveNumber)->capture_default_str();
+  sub->add_option("--stair-scene", c.stair_scene, "box scene of stair and sweep (e.g. stair_grip)")
+      ->capture_default_str();
   sub->add_flag("--no-plots", c.no_plots, "write no figures");
   sub->add_flag("--quiet", c.quiet, "no progress bars");
 }
@@ -57,10 +64,12 @@ paper::Settings settings(const Common& c) {
   s.out_dir = c.out;
   s.scenes_dir = c.scenes;
   s.jobs = c.jobs;
-  s.integ.method = model::parse_method(c.integrator);
-  s.integ.h = c.h;
-  model::validate(s.integ);
+  if (!c.integrator.empty()) {
+    s.integ = model::IntegratorOptions{.method = model::parse_method(c.integrator), .h = c.h};
+    model::validate(*s.integ);
+  }
   s.rate_hz = c.rate;
+  s.stair_scene = c.stair_scene;
   s.plots = !c.no_plots;
   s.progress = !c.quiet;
   return s;
@@ -146,10 +155,12 @@ int main(int argc, char** argv) {
   paper::Settings s;
   try {
     s = settings(c);
-    if (!(s.integ.h <= 1.0 / s.rate_hz * (1 + 1e-9)))
-      throw std::invalid_argument("--h " + std::to_string(s.integ.h) +
+    if (s.integ && !(s.integ->h <= 1.0 / s.rate_hz * (1 + 1e-9)))
+      throw std::invalid_argument("--h " + std::to_string(s.integ->h) +
                                   ": expected ≤ the control period 1/rate = " + std::to_string(1.0 / s.rate_hz) + " s");
     (void)paper::sweep_grid(sw.from, sw.to, sw.step);
+    if (const auto f = s.scenes_dir / (s.stair_scene + ".yaml"); !std::filesystem::exists(f))
+      throw std::invalid_argument("--stair-scene " + s.stair_scene + ": no scene file " + f.string());
     for (double K : se.K)
       if (!(K > 0)) throw std::invalid_argument("--K " + std::to_string(K) + ": expected > 0 [N·m/rad]");
     for (double I : se.I_r)
@@ -164,7 +175,9 @@ int main(int argc, char** argv) {
 
   try {
     std::cout << "pedalwave_paper: output in " << s.out_dir.string() << ", " << s.jobs << " threads, "
-              << model::to_string(s.integ.method) << " h = " << s.integ.h << " s, control " << s.rate_hz
+              << (s.integ ? std::string(model::to_string(s.integ->method)) + " h = " + std::to_string(s.integ->h) + " s"
+                          : std::string("each scene's own integrator"))
+              << ", control " << s.rate_hz
               << " Hz\n";
     if (*flat) {
       paper::flat(s, duration);

@@ -59,8 +59,15 @@ void write_text(const fs::path& p, const std::string& text) {
   if (!f) throw std::runtime_error("cannot write " + p.string());
 }
 
-std::string describe_integ(const Settings& s) {
-  return std::string(model::to_string(s.integ.method)) + ", h = " + fmt(s.integ.h) + " s";
+std::string describe(const model::IntegratorOptions& i) {
+  return std::string(model::to_string(i.method)) + ", h = " + fmt(i.h) + " s";
+}
+
+std::string describe_integ(const Settings& s, const model::Scene& sc) { return describe(integ_of(s, sc)); }
+
+// " --stair-scene NAME" when the box scene is not the shipped stair (commands in the Markdown).
+std::string stair_arg(const Settings& s) {
+  return s.stair_scene == "stair" ? std::string() : " --stair-scene " + s.stair_scene;
 }
 
 // Runs the specs over s.jobs threads with a progress bar; results in spec order.
@@ -85,7 +92,7 @@ RunSpec make_spec(const Settings& s, model::Scene scene, double duration, double
   RunSpec r;
   r.scene = std::move(scene);
   r.k_c = k_c;
-  r.integ = s.integ;
+  r.integ = integ_of(s, r.scene);
   r.rate_hz = s.rate_hz;
   r.sample_every = sample_every;
   return r;
@@ -166,11 +173,16 @@ model::Scene load(const Settings& s, const std::string& name) {
   return config::load_scene((s.scenes_dir / (name + ".yaml")).string());
 }
 
+model::IntegratorOptions integ_of(const Settings& s, const model::Scene& scene) {
+  return s.integ ? *s.integ : scene.integrator;
+}
+
 // ================================================================================================
 FlatResult flat(const Settings& s, double duration) {
+  const model::Scene hi = load(s, "flat_high_friction");
   log(s) << "== flat ground: average forward speed at μ = 0.82 and μ = 0.40 (" << duration
-         << " s, " << describe_integ(s) << ")\n";
-  std::vector<RunSpec> specs{make_spec(s, load(s, "flat_high_friction"), duration, 0.0, 0.05),
+         << " s, " << describe_integ(s, hi) << ")\n";
+  std::vector<RunSpec> specs{make_spec(s, hi, duration, 0.0, 0.05),
                              make_spec(s, load(s, "flat_low_friction"), duration, 0.0, 0.05)};
   const auto res = run_all(s, specs, "flat");
   FlatResult f;
@@ -205,7 +217,7 @@ FlatResult flat(const Settings& s, double duration) {
   md << "### Flat ground (`pedalwave_paper flat`)\n\n"
      << "Average forward speed of the whole-robot COM over t = " << fmt(f.avg_from) << " … "
      << fmt(duration) << " s (the first gait period 2π/ω = " << fmt(f.avg_from)
-     << " s excluded), open-loop gait (k_c = 0), " << describe_integ(s) << ", control " << fmt(s.rate_hz)
+     << " s excluded), open-loop gait (k_c = 0), " << describe(specs[0].integ) << ", control " << fmt(s.rate_hz)
      << " Hz.\n\n";
   tk::Table t({"case", "paper's experiment", "paper's simulation", "ours"});
   t.add_row({"speed, μ = 0.82", "2.40 cm/s", "2.18 cm/s", cms(f.v_high)});
@@ -224,7 +236,7 @@ FrictionResult friction(const Settings& s, double duration) {
   f.duration = duration > 0 ? duration : sc.duration;
   f.cross_x = patch_x(sc);
   log(s) << "== friction change: μ 0.82 → " << sc.ground.patches.front().mu << " from x = " << f.cross_x
-         << " m, head-joint SEA torque (" << f.duration << " s, " << describe_integ(s) << ")\n";
+         << " m, head-joint SEA torque (" << f.duration << " s, " << describe_integ(s, sc) << ")\n";
   RunSpec spec = make_spec(s, sc, f.duration, 0.0, 0.005);
   spec.cross_x = f.cross_x;
   const RunResult r = run_all(s, {spec}, "friction").front();
@@ -274,7 +286,7 @@ FrictionResult friction(const Settings& s, double duration) {
   std::ostringstream md;
   md << "### Friction change (`pedalwave_paper friction`)\n\n"
      << "Scene `friction_change`: μ = 0.82, then " << fmt(sc.ground.patches.front().mu, 2) << " from x = "
-     << fmt(f.cross_x) << " m; " << fmt(f.duration) << " s, open-loop gait, " << describe_integ(s)
+     << fmt(f.cross_x) << " m; " << fmt(f.duration) << " s, open-loop gait, " << describe_integ(s, sc)
      << ". The head tip reaches the low-friction surface at t = " << secs(f.t_cross)
      << ". Negative peaks of the head joint's SEA torque K(β − α) (one per gait period: the minimum "
         "within ± half a period; the first period excluded):\n\n";
@@ -366,8 +378,8 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
     if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("--heights " + fmt(h) + ": expected > 0 [m]");
   log(s) << "== stair: k_c ";
   for (double k : k_c) log(s) << fmt(k) << ' ';
-  log(s) << "(" << duration << " s, " << describe_integ(s) << ")\n";
-  const model::Scene sc = load(s, "stair");
+  const model::Scene sc = load(s, s.stair_scene);
+  log(s) << "on " << s.stair_scene << " (" << duration << " s, " << describe_integ(s, sc) << ")\n";
   std::vector<RunSpec> specs;
   for (double k : k_c) specs.push_back(make_spec(s, sc, duration, k, 0.05));
   for (double h : heights)
@@ -446,10 +458,10 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
     save(s, fig, "stair_progress.svg");
   }
   std::ostringstream md;
-  md << "### Stair (`pedalwave_paper stair`)\n\n"
+  md << "### Stair (`pedalwave_paper stair" << stair_arg(s) << "`, scene `" << s.stair_scene << "`)\n\n"
      << "Box " << fmt((e0.x_far - e0.x_near) * 100) << " cm wide, " << fmt(e0.top * 100)
      << " cm high, x = " << fmt(e0.x_near) << " … " << fmt(e0.x_far) << " m (5 cm ahead of the head); "
-     << fmt(duration) << " s, " << describe_integ(s) << ". *Head on top*: the head tip over the top "
+     << fmt(duration) << " s, " << describe_integ(s, sc) << ". *Head on top*: the head tip over the top "
      << "face, touching it (x within the box, z within top − " << fmt(kOnTopBelow * 100) << " cm … top + "
      << fmt(kOnTopAbove * 100) << " cm). *COM past*: the "
      << "COM beyond the far edge. *Whole body past*: all 2N+1 body points beyond the far edge. "
@@ -494,9 +506,9 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
   out.options = o;
   out.jobs = s.jobs;
   const auto grid = sweep_grid(o.from, o.to, o.step);
-  const model::Scene sc = load(s, "stair");
-  log(s) << "== k_c sweep over the stair: " << grid.size() << " runs, k_c = " << fmt(o.from) << " … "
-         << fmt(o.to) << " step " << fmt(o.step) << ", " << o.duration << " s each, " << describe_integ(s)
+  const model::Scene sc = load(s, s.stair_scene);
+  log(s) << "== k_c sweep over " << s.stair_scene << ": " << grid.size() << " runs, k_c = " << fmt(o.from) << " … "
+         << fmt(o.to) << " step " << fmt(o.step) << ", " << o.duration << " s each, " << describe_integ(s, sc)
          << ", " << s.jobs << " threads\n";
   std::vector<RunSpec> specs;
   for (double k : grid) specs.push_back(make_spec(s, sc, o.duration, k, 0.0));
@@ -541,7 +553,8 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
       if (std::find(uniq.begin(), uniq.end(), k) == uniq.end() && static_cast<int>(uniq.size()) < o.checks)
         uniq.push_back(k);
     Settings fine = s;
-    fine.integ.h = o.check_h;
+    fine.integ = integ_of(s, sc);
+    fine.integ->h = o.check_h;
     std::vector<RunSpec> cs;
     for (double k : uniq) cs.push_back(make_spec(fine, sc, o.duration, k, 0.0));
     const auto cr = run_all(s, cs, "sweep check h = " + fmt(o.check_h));
@@ -551,7 +564,7 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
         if (p.k_c == uniq[i]) c.speed = p.speed;
       if (std::isnan(c.speed) && uniq[i] == 0.0) c.speed = out.v0;
       out.checks.push_back(c);
-      log(s) << "  check k_c = " << fmt(c.k_c) << ": h = " << fmt(s.integ.h) << " → " << cms(c.speed)
+      log(s) << "  check k_c = " << fmt(c.k_c) << ": h = " << fmt(integ_of(s, sc).h) << " → " << cms(c.speed)
              << ", h = " << fmt(o.check_h) << " → " << cms(c.speed_fine) << " (Δ = "
              << fixed((c.speed - c.speed_fine) * 100, 3) << " cm/s)\n";
     }
@@ -561,7 +574,7 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
   {
     tk::CsvWriter csv(s.out_dir / "sweep.csv", {"k_c", "speed_m_s", "t_head_on_top_s", "t_com_past_s",
                                                 "t_body_past_s", "max_head_z_m", "status", "cpu_s"});
-    csv.comment("pedalwave_paper sweep: stair, " + fmt(o.duration) + " s per run, " + describe_integ(s) +
+    csv.comment("pedalwave_paper sweep: stair, " + fmt(o.duration) + " s per run, " + describe_integ(s, sc) +
                 "; speed = COM x average from one gait period on; NaN time = never");
     for (const SweepPoint& p : out.points)
       csv.row({p.k_c, p.speed, p.stair.t_head_on_top, p.stair.t_com_past, p.stair.t_body_past,
@@ -594,9 +607,9 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
     save(s, fig, "sweep_speed.svg");
   }
   std::ostringstream md;
-  md << "### k_c sweep (`pedalwave_paper sweep`)\n\n"
-     << grid.size() << " runs over the stair, k_c = " << fmt(o.from) << " … " << fmt(o.to) << " step "
-     << fmt(o.step) << ", " << fmt(o.duration) << " s each, " << describe_integ(s) << ", on " << s.jobs
+  md << "### k_c sweep (`pedalwave_paper sweep" << stair_arg(s) << "`)\n\n"
+     << grid.size() << " runs over the stair (scene `" << s.stair_scene << "`), k_c = " << fmt(o.from) << " … " << fmt(o.to) << " step "
+     << fmt(o.step) << ", " << fmt(o.duration) << " s each, " << describe_integ(s, sc) << ", on " << s.jobs
      << " threads: wall **" << fmt(out.wall_s, 3) << " s**, CPU " << fmt(out.cpu_s, 3)
      << " s, real-time factor " << fmt(out.realtime_factor, 3) << " (simulated s per wall s).\n\n";
   if (have_best)
@@ -606,7 +619,7 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
        << " of " << out.points.size() << " k_c values.\n\n";
   if (!out.checks.empty()) {
     md << "Accuracy of the sweep's integrator: the same runs at h = " << fmt(o.check_h) << " s:\n\n";
-    tk::Table t({"k_c", "h = " + fmt(s.integ.h) + " s", "h = " + fmt(o.check_h) + " s", "Δ [cm/s]"});
+    tk::Table t({"k_c", "h = " + fmt(integ_of(s, sc).h) + " s", "h = " + fmt(o.check_h) + " s", "Δ [cm/s]"});
     for (const SweepCheck& c : out.checks)
       t.add_row({fmt(c.k_c), cms(c.speed), cms(c.speed_fine), fixed((c.speed - c.speed_fine) * 100, 3)});
     md << t.to_markdown() << '\n';
@@ -655,7 +668,7 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
     vars.push_back({"v_s [m/s]", "1e-4", [](model::Scene& sc) { sc.ground.v_s = 1e-4; }});
   }
   log(s) << "== sensitivity: " << vars.size() << " variants × 5 runs (flat 0.82, flat 0.40, friction, stair k_c = 0, "
-         << fmt(o.k_c) << "), " << describe_integ(s) << '\n';
+         << fmt(o.k_c) << "), flat and friction: " << describe_integ(s, hi) << ", stair: " << describe_integ(s, st) << '\n';
   constexpr int kRuns = 5;
   std::vector<RunSpec> specs;
   const double fr_dur = o.friction_duration > 0 ? o.friction_duration : fr.duration;
@@ -710,7 +723,7 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
      << "One parameter at a time from the baseline (model-spec.md §8: K = " << fmt(K0) << " N·m/rad, I_r = "
      << fmt(Ir0) << " kg·m²); the last rows switch one model option instead. Flat and stair runs "
      << fmt(o.flat_duration) << " s / " << fmt(o.stair_duration) << " s, friction " << fmt(fr_dur) << " s, "
-     << describe_integ(s) << ". *friction gain* = v(0.82)/v(0.40) − 1 (paper +20.3 % exp., +13.7 % sim.); "
+     << "flat and friction: " << describe_integ(s, hi) << ", stair: " << describe_integ(s, st) << ". *friction gain* = v(0.82)/v(0.40) − 1 (paper +20.3 % exp., +13.7 % sim.); "
      << "*torque-peak change* (paper +4.3 % / +16.3 %; peaks before/after the crossing in brackets); *stair gain* = v(k_c = " << fmt(o.k_c)
      << ")/v(0) − 1 (paper +24.8 %); *body past*: the whole body beyond the box's far edge.\n\n"
      << t.to_markdown();
@@ -862,6 +875,37 @@ std::string paper_table(const AllResult& r, std::size_t* rows) {
                   "unpublished parameters (stair gain of k_c = 10.1: " + evidence(&SensitivityRow::stair_gain, true) +
                   "); the sweep's own integrator error is in sweep.md (re-runs at h = " + fmt(sw.options.check_h) +
                   " s" + check_text + ").");
+  {
+    // The calibrated edge friction (scene stair_grip), where the robot climbs.
+    const StairCase* g0 = nullptr;
+    const StairCase* g1 = nullptr;
+    for (const StairCase& c : r.stair_grip.cases) {
+      if (c.k_c == 0.0) g0 = &c;
+      if (c.k_c == PaperValues::kBestKc) g1 = &c;
+    }
+    const double gv0 = g0 ? g0->run.avg_speed : kNaN, gv1 = g1 ? g1->run.avg_speed : kNaN;
+    const SweepResult& gs = r.sweep_grip;
+    const bool g_best = gs.best < gs.points.size();
+    const std::string cmd = "`pedalwave_paper stair --stair-scene stair_grip`";
+    t.add_row({"stair, edge μ = 1.5 (calibrated), k_c = 10.1: average speed (60 s)", "1.3 cm/s (climbs)",
+               "≈ 2.13 cm/s", cms(gv1), cmd});
+    t.add_row({"stair, edge μ = 1.5 (calibrated), k_c = 0: average speed (60 s)", "—", "≈ 1.71 cm/s", cms(gv0), cmd});
+    t.add_row({"stair, edge μ = 1.5 (calibrated), k_c = 10.1: climb", "climbs", "climbs (Fig. 10)", climb(g1), cmd});
+    t.add_row({"stair, edge μ = 1.5 (calibrated), k_c = 0: climb", "—", "—", climb(g0), cmd});
+    t.add_row({"stair, edge μ = 1.5 (calibrated): gain of k_c = 10.1 over 0", "—", "+24.8 %", pct(gv1 / gv0 - 1.0), cmd});
+    t.add_row({"k_c sweep, edge μ = 1.5 (calibrated): best k_c, gain over k_c = 0", "—", "10.1, +24.8 %",
+               g_best ? fmt(gs.points[gs.best].k_c) + ", " + pct(gs.gain) + " (" + cms(gs.points[gs.best].speed) +
+                            " vs " + cms(gs.v0) + ")"
+                      : std::string("—"),
+               "`pedalwave_paper sweep --stair-scene stair_grip`"});
+    notes.push_back("**Stair with a grippier edge (a calibration, not a paper value)**: on the shipped stair the link "
+                    "lying across the box's near top edge leans at 50–60°, steeper than the friction angle "
+                    "atan(0.82) = 39°, and slides back over the edge once per gait period, cancelling the stride "
+                    "(an exactly periodic stuck state). Scene `stair_grip` raises the friction of the corner-vs-link "
+                    "contacts only (`edge_mu: 1.5`; the faces keep 0.82): " + stuck(g0) + stuck(g1) +
+                    "No other change tried makes the robot climb (tools/paper/README.md): corner contact off, friction "
+                    "law, v_s, start pose, K up to 100 N·m/rad or rigid joints, 12 other gaits.");
+  }
   t.add_row({"sweep wall time (151 × 60 s)", "—", "—",
              fmt(sw.wall_s, 3) + " s on " + std::to_string(sw.jobs) + " threads (RTF " + fmt(sw.realtime_factor, 3) + ")",
              "`pedalwave_paper sweep`"});
@@ -886,12 +930,21 @@ AllResult all(const Settings& s, const AllOptions& o) {
   r.friction = friction(s, o.friction_duration);
   r.stair = stair(s, o.stair_duration);
   r.sweep = sweep(s, o.sweep);
+  {
+    // The same on the calibrated edge friction, where the robot climbs (tools/paper/README.md).
+    Settings g = s;
+    g.stair_scene = "stair_grip";
+    g.out_dir = s.out_dir / "stair_grip";
+    r.stair_grip = stair(g, o.stair_duration);
+    r.sweep_grip = sweep(g, o.sweep);
+  }
   r.sensitivity = sensitivity(s, o.sensitivity);
   r.table = paper_table(r, &r.table_rows);
   write_text(s.out_dir / "paper_table.md", r.table);
   std::ostringstream all_md;
   all_md << r.table << '\n' << r.flat.markdown << '\n' << r.friction.markdown << '\n' << r.stair.markdown << '\n'
-         << r.sweep.markdown << '\n' << r.sensitivity.markdown;
+         << r.sweep.markdown << '\n' << r.stair_grip.markdown << '\n' << r.sweep_grip.markdown << '\n'
+         << r.sensitivity.markdown;
   write_text(s.out_dir / "paper.md", all_md.str());
   log(s) << "== wrote " << (s.out_dir / "paper_table.md").string() << " and " << (s.out_dir / "paper.md").string() << '\n';
   return r;

@@ -9,6 +9,8 @@
 // Numbers are never hard-coded: the paper's values appear only as the reference column.
 #pragma once
 
+#include <optional>
+
 #include <cstddef>
 #include <filesystem>
 #include <iosfwd>
@@ -37,7 +39,12 @@ struct PaperValues {
 struct Settings {
   std::filesystem::path scenes_dir;          // folder of the shipped scenes (config/scenes)
   std::filesystem::path out_dir = "out/paper";  // figures and Markdown go here (created)
-  model::IntegratorOptions integ{.method = model::Method::kImplicitVelocity, .h = 1e-3};
+  // Plant integrator for every run; unset = each scene's own (its `integrator:`, chosen by the
+  // work-precision study to stay within 1 mm of the reference: tools/workprec/README.md).
+  std::optional<model::IntegratorOptions> integ;
+  std::string stair_scene = "stair";         // the box scene of `stair` and `sweep` (`all` also runs
+                                             // "stair_grip", the calibrated edge friction, into
+                                             // out_dir/stair_grip)
   double rate_hz = 1000.0;                   // control rate [Hz]
   int jobs = 1;                              // worker threads for independent runs
   bool progress = true;                      // progress bars on stderr
@@ -47,6 +54,9 @@ struct Settings {
 
 // Loads config/scenes/<name>.yaml from settings.scenes_dir.
 model::Scene load(const Settings& s, const std::string& name);
+
+// The integrator a run of this scene uses: Settings::integ if set, else the scene's own.
+model::IntegratorOptions integ_of(const Settings& s, const model::Scene& scene);
 
 // ---- flat ----------------------------------------------------------------------------------------
 struct FlatResult {
@@ -102,7 +112,7 @@ struct SweepOptions {
   double duration = 60.0;                    // per run [s]
   int checks = 4;              // k_c values re-run at check_h (0 = none): k_c = 0, the best,
                                // the paper's 10.1 (if in range), the middle of the grid
-  double check_h = 2.5e-4;     // finer integrator step for the accuracy check [s]
+  double check_h = 1e-4;       // finer integrator step for the accuracy check [s]
 };
 struct SweepPoint {
   double k_c = 0.0;
@@ -172,6 +182,8 @@ struct AllResult {
   FrictionResult friction;
   StairResult stair;
   SweepResult sweep;
+  StairResult stair_grip;      // the same on "stair_grip" (out_dir/stair_grip)
+  SweepResult sweep_grip;
   SensitivityResult sensitivity;
   std::string table;           // out_dir/paper_table.md
   std::size_t table_rows = 0;  // rows of the comparison table

@@ -174,7 +174,7 @@ int work_precision(const Options& opt) {
 
   // The sweep.
   const std::vector<double> fixed_h = opt.quick ? std::vector<double>{1e-4, 5e-4, 1e-3}
-                                                : std::vector<double>{1e-5, 2e-5, 5e-5, 1e-4, 2e-4, 5e-4, 1e-3};
+                                                : std::vector<double>{1e-5, 2e-5, 5e-5, 1e-4, 2e-4, 2.5e-4, 5e-4, 1e-3};
   const std::vector<double> rk4_h = opt.quick ? std::vector<double>{1e-4, 5e-4}
                                               : std::vector<double>{5e-5, 1e-4, 2e-4, 5e-4, 1e-3};
   const std::vector<double> rtols = opt.quick ? std::vector<double>{1e-3, 1e-6}

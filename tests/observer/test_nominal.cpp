@@ -4,6 +4,8 @@
 // act on the body rows only: they must not show in the motor residuals. Label "slow".
 #include <gtest/gtest.h>
 
+#include <ostream>
+
 #include "harness.hpp"
 
 namespace pw = pedalwave;
@@ -14,6 +16,8 @@ struct Case {
   const char* scene;
   double k_c;
 };
+
+void PrintTo(const Case& c, std::ostream* os) { *os << c.scene << " k_c=" << c.k_c; }
 
 class Nominal : public ::testing::TestWithParam<Case> {};
 
@@ -45,7 +49,7 @@ INSTANTIATE_TEST_SUITE_P(
     Scenes, Nominal,
     ::testing::Values(Case{"flat_high_friction", 0.0}, Case{"flat_low_friction", 0.0},
                       Case{"friction_change", 0.0}, Case{"stair", 0.0}, Case{"stair", 15.0},
-                      Case{"friction_change", 15.0}),
+                      Case{"friction_change", 15.0}, Case{"stair_grip", 0.0}, Case{"stair_grip", 15.0}),
     [](const ::testing::TestParamInfo<Case>& i) {
       return std::string(i.param.scene) + "_kc" + std::to_string(static_cast<int>(i.param.k_c));
     });

@@ -143,6 +143,11 @@ TEST(LinkSide, ExternalTorqueAndBodyPredictionOnFlatGround) {
   EXPECT_LT(pz_err, 0.01);
   EXPECT_NEAR(loop.observer().core().forward_speed(), dx_true / 20.0, 0.5 * dx_true / 20.0);
   RecordProperty("tau_ext_corr", std::to_string(corr));
+  RecordProperty("px_true", std::to_string(dx_true));
+  RecordProperty("px_pred", std::to_string(dx_pred));
+  RecordProperty("theta_N_err_max", std::to_string(th_err));
+  RecordProperty("p_z_err_max", std::to_string(pz_err));
+  RecordProperty("speed_pred", std::to_string(loop.observer().core().forward_speed()));
 }
 
 }  // namespace

@@ -44,18 +44,19 @@ model::Scene shipped_scene(const std::string& name) {
   } else if (name == "friction_change") {
     s.ground.patches.push_back({0.30, 0.40});
     s.duration = 30;
-  } else if (name == "stair") {
+  } else if (name == "stair" || name == "stair_grip") {
     model::Box b;
     b.ahead_of_head = 0.05;
     b.width = 0.11;
     b.height = 0.06;
     b.mu = 0.82;
+    if (name == "stair_grip") b.edge_mu = 1.5;  // the calibrated edge: the robot climbs
     s.boxes.push_back(b);
     s.duration = 60;
   } else {
     throw std::invalid_argument("faultbench: scene '" + name +
                                 "': expected flat_high_friction, flat_low_friction, "
-                                "friction_change or stair");
+                                "friction_change, stair or stair_grip");
   }
   model::validate(s);
   return s;

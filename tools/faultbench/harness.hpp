@@ -25,7 +25,7 @@ namespace pedalwave::faultbench {
 model::SensorNoise module_noise(std::uint64_t seed);
 
 // The shipped scenes, by name ("flat_high_friction", "flat_low_friction", "friction_change",
-// "stair"), as in config/scenes (built in code: the test and tool need no files).
+// "stair", "stair_grip"), as in config/scenes (built in code: the test and tool need no files).
 model::Scene shipped_scene(const std::string& name);
 
 // Observer parameters the campaign uses for a scene (observer_params + the calibrated thresholds

@@ -5,7 +5,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <time.h>
+
 #include <chrono>
+#include <cmath>
+#include <string>
 #include <cstdio>
 #include <map>
 #include <mutex>
@@ -101,13 +105,16 @@ const char* check_of(model::FaultType f) {
   }
 }
 
-std::vector<Trial> campaign(int trials, int jobs, std::uint64_t seed, bool verbose) {
+std::vector<Trial> campaign(int trials, int jobs, std::uint64_t seed, bool verbose,
+                            const std::string& only) {
   std::vector<Trial> all;
   std::mt19937_64 rng(seed);
   for (const char* scene : {"flat_high_friction", "stair"})
     for (int f = 0; f < static_cast<int>(model::FaultType::kCount); ++f)
       for (int i = 0; i < trials; ++i)
         all.push_back({scene, faultbench::random_fault(static_cast<model::FaultType>(f), 5, 2.0, 8.0, rng), {}});
+  if (!only.empty())  // same draws, then keep one type (to rerun part of a campaign)
+    std::erase_if(all, [&](const Trial& t) { return model::to_string(t.fault.type) != only; });
   std::mutex mu;
   parallel_for(static_cast<int>(all.size()), jobs, [&](int i) {
     Trial& tr = all[static_cast<std::size_t>(i)];
@@ -126,6 +133,193 @@ std::vector<Trial> campaign(int trials, int jobs, std::uint64_t seed, bool verbo
   return all;
 }
 
+std::string threshold_of(model::FaultType f, const observer::ObserverParams& p) {
+  using model::FaultType;
+  char b[160];
+  switch (f) {
+    case FaultType::kTorqueGain:
+    case FaultType::kMotorFriction:
+    case FaultType::kSpringScale:
+    case FaultType::kDeflectionBias:
+    case FaultType::kDeflectionScale:
+      std::snprintf(b, sizeof b, "|r| > %.3g N·m, then %.1f + %.1f s fit", p.r_threshold, p.t_transient, p.t_classify);
+      break;
+    case FaultType::kEncoderOffset:
+      std::snprintf(b, sizeof b, "|c| > %.1e rad, alone in %d cycles", p.consistency_threshold, p.jump_window);
+      break;
+    case FaultType::kEncoderNoise:
+      std::snprintf(b, sizeof b, "|c| > %.1e rad, %d more in %d cycles", p.consistency_threshold, p.noise_spikes, p.jump_window);
+      break;
+    case FaultType::kEncoderStuck:
+      std::snprintf(b, sizeof b, "%d identical, β_ref moved > %.0e rad", p.hold_cycles, p.hold_motion);
+      break;
+    case FaultType::kDeflectionStuck:
+      std::snprintf(b, sizeof b, "%d identical, β moved > %.0e rad", p.hold_cycles_deflection, p.hold_motion);
+      break;
+    case FaultType::kNaN:
+    case FaultType::kImplausible:
+      std::snprintf(b, sizeof b, "|β| > %.1f, |β̇| > %.0f, |def| > %.1f", p.beta_max, p.beta_dot_max, p.deflection_max);
+      break;
+    case FaultType::kModuleSilent: std::snprintf(b, sizeof b, "%d missing in a row", p.missing_cycles); break;
+    case FaultType::kStale:
+    case FaultType::kOutOfOrder:
+    case FaultType::kRepeatedFrame:
+      std::snprintf(b, sizeof b, "%d in %d cycles", p.stale_count, p.stale_window);
+      break;
+    case FaultType::kJointLoad:
+      std::snprintf(b, sizeof b, "LP(τ=%.2f s) of |u| ≥ u_max > %.1f", p.saturation_tau, p.saturation_fraction);
+      break;
+    default: b[0] = 0;
+  }
+  return b;
+}
+
+// A Markdown table cell: '|' inside the text must be escaped or it splits the cell.
+std::string cell(const std::string& text) {
+  std::string out;
+  for (char c : text) {
+    if (c == '|') out += '\\';
+    out += c;
+  }
+  return out;
+}
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<std::size_t>(std::min<double>(v.size() - 1, std::floor(q * static_cast<double>(v.size()))))];
+}
+
+void print_campaign(const std::vector<Trial>& all) {
+  const auto p = faultbench::campaign_params(faultbench::shipped_scene("flat_high_friction"));
+  std::printf("| fault (injected) | named class | residual / check | threshold | detected | latency median [ms] | latency max [ms] | isolation (class + joint) |\n");
+  std::printf("|---|---|---|---|---|---|---|---|\n");
+  for (int f = 0; f < static_cast<int>(model::FaultType::kCount); ++f) {
+    const auto type = static_cast<model::FaultType>(f);
+    std::vector<double> lat;
+    int n = 0, det = 0, iso = 0;
+    for (const Trial& t : all) {
+      if (t.fault.type != type) continue;
+      ++n;
+      if (t.res.detected && !t.res.false_alarm) {
+        ++det;
+        lat.push_back(t.res.latency * 1e3);
+        if (t.res.fault == faultbench::expected_class(type) && t.res.joint == faultbench::expected_joint(t.fault)) ++iso;
+      }
+    }
+    if (n == 0) continue;
+    std::printf("| %s | %s | %s | %s | %d/%d | %.0f | %.0f | %d/%d (%.0f %%) |\n",
+                std::string(model::to_string(type)).c_str(), faultbench::class_name(faultbench::expected_class(type)),
+                cell(check_of(type)).c_str(), cell(threshold_of(type, p)).c_str(), det, n, quantile(lat, 0.5), quantile(lat, 1.0),
+                iso, n, 100.0 * iso / std::max(1, n));
+  }
+}
+
+struct NominalCase { const char* scene; double k_c; };
+
+void nominal(double minutes, int jobs) {
+  const std::vector<NominalCase> cases = {{"flat_high_friction", 0}, {"flat_low_friction", 0},
+                                          {"friction_change", 0},    {"stair", 0},
+                                          {"stair", 15},             {"friction_change", 15},
+                                          {"flat_high_friction", 15}, {"flat_low_friction", 15},
+                                          {"stair_grip", 0},          {"stair_grip", 15}};
+  std::vector<faultbench::NominalStats> st(cases.size());
+  parallel_for(static_cast<int>(cases.size()), jobs, [&](int i) {
+    const auto& c = cases[static_cast<std::size_t>(i)];
+    model::Scene s = faultbench::shipped_scene(c.scene);
+    s.torque_limit_on = true;
+    s.torque_limit.u_max = 0.8;
+    LoopOptions o;
+    o.k_c = c.k_c;
+    o.seed = 9000 + static_cast<std::uint64_t>(i);
+    st[static_cast<std::size_t>(i)] = faultbench::run_nominal(s, o, minutes * 60.0);
+  });
+  double total = 0.0;
+  int alarms = 0;
+  std::printf("| nominal run (noise on, u_max = 0.8 N·m) | k_c | simulated [min] | false alarms | max \\|r\\| [N·m] | max \\|c\\| [rad] | longest hold β / def [cycles] | max saturation LP |\n");
+  std::printf("|---|---|---|---|---|---|---|---|\n");
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    const auto& s = st[i];
+    total += s.seconds;
+    alarms += s.alarms;
+    std::printf("| %s | %g | %.1f | %d%s%s | %.4f | %.1e | %d / %d | %.3f |\n", cases[i].scene, cases[i].k_c,
+                s.seconds / 60.0, s.alarms, s.alarms ? " first: " : "", s.alarms ? faultbench::class_name(s.first) : "",
+                s.max_residual, s.max_consistency, s.max_hold_beta, s.max_hold_defl, s.max_saturation);
+  }
+  std::printf("\n**False alarms: %d over %.2f nominal hours simulated.**\n", alarms, total / 3600.0);
+}
+
+void timing(int cycles) {
+  std::printf("| N | joints | observe() median [µs] | p99 [µs] | max [µs] | without body model median [µs] |\n|---|---|---|---|---|---|\n");
+  for (int N : {6, 24}) {
+    model::Scene s = faultbench::shipped_scene("flat_high_friction");
+    s.robot = model::paper_params(N);
+    double med[2] = {0, 0}, p99 = 0, mx = 0;
+    for (int body = 1; body >= 0; --body) {
+      LoopOptions o;
+      auto op = faultbench::campaign_params(s);
+      op.body_model = body == 1;
+      faultbench::FaultLoop loop(s, o, op);
+      for (int i = 0; i < 500; ++i) loop.step();
+      // Re-run observe on the live feedback of each cycle on a twin observer (the loop's own one
+      // keeps running), timed alone.
+      observer::RuntimeObserver twin(op);
+      runtime::CycleSample sample{};
+      std::vector<double> us;
+      us.reserve(static_cast<std::size_t>(cycles));
+      drivers::Command last = loop.command();
+      for (int i = 0; i < cycles; ++i) {
+        loop.step();
+        // Thread CPU time: what observe() costs, without the preemptions of a shared machine.
+        timespec a{}, b{};
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &a);
+        (void)twin.observe(loop.feedback(), last, loop.t(), 1e-3, sample);
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &b);
+        last = loop.command();
+        us.push_back(static_cast<double>(b.tv_sec - a.tv_sec) * 1e6 +
+                     static_cast<double>(b.tv_nsec - a.tv_nsec) * 1e-3);
+      }
+      med[body] = quantile(us, 0.5);
+      if (body == 1) p99 = quantile(us, 0.99), mx = quantile(us, 1.0);
+    }
+    std::printf("| %d | %d | %.1f | %.1f | %.1f | %.1f |\n", N, N - 1, med[1], p99, mx, med[0]);
+  }
+}
+
+// The motor rows' neglected coupling n I_r θ̈_j (θ_j = the stator link's absolute angle), from the
+// plant's true state differenced at the cycle rate: max and rms over a run.
+void coupling(const char* scene, double seconds) {
+  LoopOptions o;
+  o.noise = false;
+  faultbench::FaultLoop loop(faultbench::shipped_scene(scene), o);
+  const auto& m = loop.sim().sim().plant().model();
+  const int J = m.joints();
+  std::vector<double> th0(static_cast<std::size_t>(J)), th1(th0), th2(th0);
+  double mx = 0, s2 = 0;
+  long n = 0;
+  const double nIr = m.params().n * m.params().I_r;
+  for (int i = 0; i < static_cast<int>(seconds / o.period); ++i) {
+    loop.step();
+    const auto& q = loop.sim().sim().q();
+    th0 = th1;
+    th1 = th2;
+    for (int j = 0; j < J; ++j) {
+      double th = q(m.i_theta_N());
+      for (int k = j; k < J; ++k) th += q(m.i_alpha(k));
+      th2[static_cast<std::size_t>(j)] = th;
+    }
+    if (loop.t() < 1.0) continue;
+    for (int j = 0; j < J; ++j) {
+      const auto k = static_cast<std::size_t>(j);
+      const double acc = (th2[k] - 2 * th1[k] + th0[k]) / (o.period * o.period);
+      mx = std::max(mx, std::abs(nIr * acc));
+      s2 += nIr * acc * nIr * acc;
+      ++n;
+    }
+  }
+  std::printf("| %s | %.2e | %.2e |\n", scene, mx, std::sqrt(s2 / static_cast<double>(n)));
+}
+
 int main(int argc, char** argv) {
   CLI::App app{"pedalwave_faultbench: observer fault-injection campaign"};
   bool calib = false;
@@ -139,17 +333,44 @@ int main(int argc, char** argv) {
   std::uint64_t seed = 7;
   bool verbose = false;
   app.add_option("--trials", trials, "random injections per fault type and scene");
+  double nominal_minutes = 0;
+  double coupling_s = 0;
+  app.add_option("--coupling", coupling_s, "measure the neglected coupling n I_r θ̈ over this long [s]");
+  int timing_cycles = 0;
+  app.add_option("--nominal-minutes", nominal_minutes, "simulated minutes per nominal run (8 runs)");
+  app.add_option("--timing-cycles", timing_cycles, "cycles timed per N for the compute-time table");
   app.add_option("--seed", seed, "campaign seed");
   app.add_flag("-v,--verbose", verbose, "one line per trial on stderr");
+  std::string only;
+  app.add_option("--only", only, "campaign: only this fault type (same random draws)");
   bool no_noise = false;
   app.add_option("--trace", trace_s, "print a trace of the flat scene for this long [s]");
   app.add_flag("--no-noise", no_noise, "sensor noise off");
   CLI11_PARSE(app, argc, argv);
   if (trace_s > 0) return trace(trace_s, !no_noise);
   if (calib) return calibrate(minutes, jobs);
+  if (coupling_s > 0) {
+    std::printf("| scene | max \\|n I_r θ̈_j\\| [N·m] | rms [N·m] |\n|---|---|---|\n");
+    for (const char* sc : {"flat_high_friction", "stair"}) coupling(sc, coupling_s);
+    return 0;
+  }
+  if (trials <= 0 && nominal_minutes <= 0 && timing_cycles <= 0) {
+    std::fprintf(stderr, "nothing to do: give --trials, --nominal-minutes or --timing-cycles\n");
+    return 2;
+  }
   if (trials > 0) {
-    auto all = campaign(trials, jobs, seed, verbose);
-    (void)all;
+    std::printf("## Fault-injection campaign: %d random injections per fault and scene (flat_high_friction, stair), onset uniform in 2…8 s, joint uniform, sensor noise on\n\n", trials);
+    print_campaign(campaign(trials, jobs, seed, verbose, only));
+    std::printf("\n");
+  }
+  if (nominal_minutes > 0) {
+    std::printf("## Nominal runs (false alarms)\n\n");
+    nominal(nominal_minutes, jobs);
+    std::printf("\n");
+  }
+  if (timing_cycles > 0) {
+    std::printf("## Observer compute time per cycle (one run, %d cycles each, thread CPU time, this machine)\n\n", timing_cycles);
+    timing(timing_cycles);
   }
   return 0;
 }

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <ostream>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -72,6 +73,12 @@ struct WalkSetup {
   int cpu = -1;                // pin the loop thread to this CPU; −1 = no pinning
   bool observer = false;       // the onboard observer in the cycle (see vrobot_walk_test.cpp)
 };
+
+// GoogleTest prints a parameter with these instead of its bytes.
+inline void PrintTo(Transport t, std::ostream* os) { *os << name(t); }
+inline void PrintTo(const WalkSetup& s, std::ostream* os) {
+  *os << name(s.transport) << " at " << s.rate_hz << " Hz, " << s.duration << " s";
+}
 
 // The daemon configuration of `s`, in the YAML the daemon reads (config/runtime/*.yaml): only the
 // driver section differs between the simulated plant and the buses.

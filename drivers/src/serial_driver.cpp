@@ -248,7 +248,7 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
   ++cycle_;
   counter_ = static_cast<std::uint8_t>(counter_ + 1);
   for (int j = 0; j < joints_; ++j) {
-    begin_cycle(rc_[static_cast<std::size_t>(j)]);
+    drivers::begin_cycle(rc_[static_cast<std::size_t>(j)]);
     status_[static_cast<std::size_t>(j)] = 0;
   }
   fresh_count_ = 0;

@@ -3,6 +3,7 @@
 // allocation-free themselves (so "the cycle allocates nothing" measures the runtime).
 #pragma once
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -37,8 +38,12 @@ class FakeDriver : public dr::Driver {
   explicit FakeDriver(int joints) : joints_(joints) {}
   int joints() const override { return joints_; }
 
+  void begin_cycle(std::int64_t scheduled_ns) noexcept override { pending_scheduled_ns = scheduled_ns; }
+
   dr::IoStatus read(std::int64_t now_ns, std::int64_t deadline_ns, dr::Feedback& out) override {
     const std::uint64_t k = reads++;
+    if (k < scheduled.size()) scheduled[k] = pending_scheduled_ns;  // what begin_cycle said
+    pending_scheduled_ns = 0;
     last_call = Call::kRead;
     last_read_deadline_ns = deadline_ns;
     last_read_now_ns = now_ns;
@@ -102,6 +107,8 @@ class FakeDriver : public dr::Driver {
   Call last_call = Call::kNone;
   dr::Command last_cmd{};
   std::int64_t last_read_deadline_ns = 0, last_read_now_ns = 0;
+  std::array<std::int64_t, 256> scheduled{};  // begin_cycle's time before read k (0: not called)
+  std::int64_t pending_scheduled_ns = 0;
 
  private:
   int joints_;

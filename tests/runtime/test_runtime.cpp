@@ -213,6 +213,10 @@ TEST(Runtime, OverrunIsCountedAndSkipsWholePeriodsWithoutBurst) {
   EXPECT_DOUBLE_EQ(rig.samples[11].t - rig.samples[10].t, 0.004) << "controller time stays on the grid";
   EXPECT_EQ(rig.samples[11].overruns, 1u);
   EXPECT_EQ(rig.samples[10].overruns, 0u);
+  // The driver is told every cycle's scheduled time before its read (a lockstep plant advances by
+  // exactly that), skipped periods included.
+  for (std::size_t k = 0; k < rig.samples.size(); ++k)
+    EXPECT_EQ(rig.driver.scheduled[k], rig.samples[k].t_ns) << "cycle " << k;
   EXPECT_EQ(rig.result.reason, ExitReason::kCycleLimit) << "overruns alone do not stop the loop";
   rig.expect_safe_exit();
 }

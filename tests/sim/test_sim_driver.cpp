@@ -87,6 +87,34 @@ TEST(SimDriver, WatchdogDropsTorqueWhenCommandsStop) {
   EXPECT_GT(d.sim().t(), 0.05) << "the free-running plant advances with the wall clock";
 }
 
+// Lockstep under wake-up latency: the plant's time follows the loop's scheduled times
+// (begin_cycle), so a cycle that wakes 1.06 periods late still sees exactly one period of plant
+// motion, and a cycle after a skipped period sees two — what the loop's deadline-based dt says.
+// (Inferring the skip from the wake-up times alone put the extra period one cycle early, and the
+// observer then saw a spike: the demo's spurious encoder_jump after an overrun.)
+TEST(SimDriver, LockstepFollowsTheScheduledTimeNotTheWakeUp) {
+  drivers::SimDriver d(flat(), {});
+  drivers::Command cmd{};
+  cmd.joints = d.joints();
+  cmd.kp.fill(30);
+  cmd.kd.fill(15);
+  drivers::Feedback fb{};
+  constexpr std::int64_t T = 1'000'000, base = 5'000'000'000;
+  struct Cycle { std::int64_t scheduled, wake; };
+  const Cycle cycles[] = {{base, base + 10'000},           // on time
+                          {base + T, base + T + 1'060'000},  // 1.06 periods late
+                          {base + 3 * T, base + 3 * T + 20'000},  // the loop skipped base + 2T
+                          {base + 4 * T, base + 4 * T + 900'000}};
+  std::int64_t stamp0 = 0;
+  for (const Cycle& c : cycles) {
+    d.begin_cycle(c.scheduled);
+    ASSERT_EQ(d.read(c.wake, c.wake + T / 2, fb), drivers::IoStatus::kOk);
+    if (c.scheduled == base) stamp0 = fb.stamp_ns;
+    EXPECT_EQ(fb.stamp_ns - stamp0, c.scheduled - base) << "plant time must equal the loop's scheduled time";
+    d.write(cmd);
+  }
+}
+
 TEST(SimDriver, SafeStopTurnsTorqueOff) {
   model::Scene s = flat();
   drivers::SimDriver d(s, {});

@@ -146,9 +146,13 @@ IoStatus SimDriver::read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback
     // The plant follows the loop's clock: when the loop skipped periods (an overrun), the robot
     // kept moving under the last command for that time too.
     // Whole periods only: the loop skips whole periods, and its dt is deadline-based, so the
-    // plant must advance by exactly the skipped periods (wake-up jitter is not plant time).
-    if (last_read_ns_ != 0 && now_ns > last_read_ns_) {
-      const double gap = static_cast<double>(now_ns - last_read_ns_) * 1e-9 / opt_.period;
+    // plant must advance by exactly the skipped periods (wake-up jitter is not plant time). The
+    // scheduled time (begin_cycle) is exact; the wake-up time is a fallback that miscounts when a
+    // wake-up is late by half a period or more (the plant would then run ahead of the loop's dt).
+    const std::int64_t loop_ns = scheduled_ns_ != 0 ? scheduled_ns_ : now_ns;
+    scheduled_ns_ = 0;
+    if (last_read_ns_ != 0 && loop_ns > last_read_ns_) {
+      const double gap = static_cast<double>(loop_ns - last_read_ns_) * 1e-9 / opt_.period;
       const long skipped = std::lround(gap) - 1;
       if (skipped > 0) {
         model::Simulation& s = *sim_;
@@ -156,7 +160,7 @@ IoStatus SimDriver::read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback
         if (st != model::StepStatus::kOk) status_.store(static_cast<int>(st));
       }
     }
-    last_read_ns_ = now_ns;
+    last_read_ns_ = loop_ns;
     measure_into(out);
     out.stamp_ns = static_cast<std::int64_t>(std::llround(sim_->t() * 1e9));
   } else {

@@ -256,6 +256,7 @@ bool Runtime::cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std:
   cur_deadline_ = deadline;
 
   // ---- 1. read ----
+  driver_.begin_cycle(deadline);
   const drivers::IoStatus io = driver_.read(wake, wake + read_budget_ns_, fb_);
   const std::int64_t t_read = clock_.now();
   fb_.joints = joints_;

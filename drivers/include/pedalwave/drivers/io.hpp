@@ -85,6 +85,11 @@ class Driver {
   // Start of cycle: trigger acquisition (e.g. send SYNC) and gather feedback until deadline_ns
   // (CLOCK_MONOTONIC). now_ns is the cycle's wake-up time.
   virtual IoStatus read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback& out) = 0;
+  // Called by the loop just before read(): the cycle's scheduled time on the loop's deadline grid
+  // (CLOCK_MONOTONIC). It differs from the wake-up time by the wake latency, which can exceed a
+  // period on a loaded machine. A driver that simulates the robot in step with the loop uses it to
+  // advance exactly the scheduled time; hardware drivers ignore it.
+  virtual void begin_cycle(std::int64_t scheduled_ns) noexcept { (void)scheduled_ns; }
   // End of cycle: send commands (applied by the modules at the next SYNC / immediately).
   virtual IoStatus write(const Command& cmd) = 0;
   // Safe command on every exit path: torque off (or hold) sent before the bus is let go.

@@ -50,6 +50,7 @@ class FaultInjectingDriver final : public Driver {
 
   int joints() const override { return inner_.joints(); }
   IoStatus read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback& out) override;
+  void begin_cycle(std::int64_t scheduled_ns) noexcept override { inner_.begin_cycle(scheduled_ns); }
   IoStatus write(const Command& cmd) override;
   void safe_stop() override { inner_.safe_stop(); }
   const DriverCounters& counters() const override { return inner_.counters(); }

@@ -58,6 +58,9 @@ class SimDriver final : public Driver {
 
   int joints() const override { return joints_; }
   IoStatus read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback& out) override;
+  // Lockstep: the plant's time follows the scheduled times (skipped periods included), not the
+  // wake-up times (whose latency is not plant time). Without it, read() infers them from now_ns.
+  void begin_cycle(std::int64_t scheduled_ns) noexcept override { scheduled_ns_ = scheduled_ns; }
   IoStatus write(const Command& cmd) override;
   void safe_stop() override;
   const DriverCounters& counters() const override { return counters_; }
@@ -96,6 +99,7 @@ class SimDriver final : public Driver {
   SimRecording rec_;
   std::uint64_t periods_ = 0;
   std::int64_t last_read_ns_ = 0;  // lockstep: the loop's time at the previous read [ns]
+  std::int64_t scheduled_ns_ = 0;  // lockstep: this cycle's scheduled time (begin_cycle), 0 = none
   Eigen::VectorXd u_rec_;
 
   // Free-running exchange (seqlocks: writer increments to odd, copies, increments to even).

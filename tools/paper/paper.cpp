@@ -791,12 +791,21 @@ std::string paper_table(const AllResult& r, std::size_t* rows) {
   const bool have_best = sw.best < sw.points.size();
   const double best_k = have_best ? sw.points[sw.best].k_c : kNaN;
   const double best_v = have_best ? sw.points[sw.best].speed : kNaN;
-  const StairCase* s0 = nullptr;
-  const StairCase* s1 = nullptr;
-  for (const StairCase& c : r.stair.cases) {
-    if (c.k_c == 0.0) s0 = &c;
-    if (c.k_c == PaperValues::kBestKc) s1 = &c;
-  }
+  // The run of a stair result at a given k_c (nullptr if it was not run).
+  auto case_at = [](const StairResult& st, double k_c) -> const StairCase* {
+    for (const StairCase& c : st.cases)
+      if (c.k_c == k_c) return &c;
+    return nullptr;
+  };
+  // "; k_c = …: v → v_fine" for each of a sweep's accuracy re-runs.
+  auto check_list = [](const SweepResult& sr) {
+    std::string text;
+    for (const SweepCheck& c : sr.checks)
+      text += "; k_c = " + fmt(c.k_c) + ": " + cms(c.speed) + " → " + cms(c.speed_fine);
+    return text;
+  };
+  const StairCase* s0 = case_at(r.stair, 0.0);
+  const StairCase* s1 = case_at(r.stair, PaperValues::kBestKc);
   const double st0 = s0 ? s0->run.avg_speed : kNaN, st1 = s1 ? s1->run.avg_speed : kNaN;
   auto climb = [](const StairCase* c) {
     if (!c) return std::string("—");
@@ -869,9 +878,6 @@ std::string paper_table(const AllResult& r, std::size_t* rows) {
                   "Our contact also tests the box's corners against the link segments, which the "
                   "paper names as a remedy but whose use in its results it does not state; see the shape plots "
                   "(stair_shapes_*.svg, stair_film_*.svg) for what the body does at the box.");
-  std::string check_text;
-  for (const SweepCheck& c : sw.checks)
-    check_text += "; k_c = " + fmt(c.k_c) + ": " + cms(c.speed) + " → " + cms(c.speed_fine);
   t.add_row({"k_c sweep: best k_c (0 … 15 step 0.1)", "—", "10.1", fmt(best_k), "`pedalwave_paper sweep`"});
   t.add_row({"k_c sweep: best over k_c = 0", "—", "+24.8 %", pct(sw.gain) + " (" + cms(best_v) + " vs " + cms(sw.v0) + ")",
              "`pedalwave_paper sweep`"});
@@ -879,15 +885,11 @@ std::string paper_table(const AllResult& r, std::size_t* rows) {
   notes.push_back("**k_c sweep**: the optimum is the argmax of a speed curve that is itself sensitive to the "
                   "unpublished parameters (stair gain of k_c = 10.1: " + evidence(&SensitivityRow::stair_gain, true) +
                   "); the sweep's own integrator error is in sweep.md (re-runs at h = " + fmt(sw.options.check_h) +
-                  " s" + check_text + ").");
+                  " s" + check_list(sw) + ").");
   {
     // The calibrated edge friction (scene stair_grip), where the robot climbs.
-    const StairCase* g0 = nullptr;
-    const StairCase* g1 = nullptr;
-    for (const StairCase& c : r.stair_grip.cases) {
-      if (c.k_c == 0.0) g0 = &c;
-      if (c.k_c == PaperValues::kBestKc) g1 = &c;
-    }
+    const StairCase* g0 = case_at(r.stair_grip, 0.0);
+    const StairCase* g1 = case_at(r.stair_grip, PaperValues::kBestKc);
     const double gv0 = g0 ? g0->run.avg_speed : kNaN, gv1 = g1 ? g1->run.avg_speed : kNaN;
     const SweepResult& gs = r.sweep_grip;
     const bool g_best = gs.best < gs.points.size();
@@ -910,12 +912,7 @@ std::string paper_table(const AllResult& r, std::size_t* rows) {
                     "contacts only (`edge_mu: 1.5`; the faces keep 0.82): " + stuck(g0) + stuck(g1) +
                     "No other change tried makes the robot climb (tools/paper/README.md): corner contact off, friction "
                     "law, v_s, start pose, K up to 100 N·m/rad or rigid joints, 12 other gaits. Its sweep's own "
-                    "integrator error (re-runs at h = " + fmt(gs.options.check_h) + " s" + [&] {
-                      std::string text;
-                      for (const SweepCheck& c : gs.checks)
-                        text += "; k_c = " + fmt(c.k_c) + ": " + cms(c.speed) + " → " + cms(c.speed_fine);
-                      return text;
-                    }() + ") is of the size of the gain: the speed has a plateau over k_c ≈ 6 … 11 rather than a sharp optimum.");
+                    "integrator error (re-runs at h = " + fmt(gs.options.check_h) + " s" + check_list(gs) + ") is of the size of the gain: the speed has a plateau over k_c ≈ 6 … 11 rather than a sharp optimum.");
   }
   t.add_row({"sweep wall time (151 × 60 s)", "—", "—",
              fmt(sw.wall_s, 3) + " s on " + std::to_string(sw.jobs) + " threads (RTF " + fmt(sw.realtime_factor, 3) + ")",

@@ -38,6 +38,7 @@
 #include <thread>
 #include <vector>
 
+#include "daemon.hpp"
 #include "gait_stage.hpp"
 #include "pedalwave/config/daemon.hpp"
 #include "pedalwave/drivers/sim_driver.hpp"
@@ -45,9 +46,6 @@
 #include "pedalwave/runtime/runtime.hpp"
 #include "pedalwave/telemetry/dds_telemetry.hpp"
 #include "pedalwave/telemetry/subscriber.hpp"
-#if PEDALWAVE_HAS_OBSERVER
-#include "pedalwave/observer/runtime_observer.hpp"
-#endif
 
 extern char** environ;
 
@@ -306,23 +304,8 @@ PhaseResult run_phase(const Options& o, int joints, const std::string& phase, in
 
   drivers::SimDriver sim(cfg.driver.scene, cfg.driver.sim);
   app::GaitStage stage(cfg.controller);
-  runtime::Observer* observer = nullptr;
-#if PEDALWAVE_HAS_OBSERVER
-  // As the daemon wires it: the robot the controller is tuned for, the loop period, the scene's
-  // known motor friction and torque limit.
-  std::unique_ptr<observer::RuntimeObserver> obs;
-  if (cfg.observer) {
-    observer::ObserverParams op;
-    op.robot = cfg.robot;
-    op.period = 1.0 / cfg.runtime.rt.rate_hz;
-    const model::Scene& sc = cfg.driver.scene;
-    if (sc.joint_friction_on) op.motor_viscous = sc.joint_friction.motor_viscous;
-    if (sc.torque_limit_on) op.u_max = sc.torque_limit.u_max;
-    obs = std::make_unique<observer::RuntimeObserver>(op);
-    observer = obs.get();
-  }
-#endif
-  auto rt = std::make_unique<runtime::Runtime>(cfg.runtime, sim, stage, observer);
+  const std::unique_ptr<runtime::Observer> observer = app::make_observer(cfg);  // as the daemon wires it
+  auto rt = std::make_unique<runtime::Runtime>(cfg.runtime, sim, stage, observer.get());
 
   ComputeRecorder compute;
   std::vector<runtime::TelemetrySink*> sinks{&compute};

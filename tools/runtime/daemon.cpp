@@ -153,6 +153,27 @@ void write_plots(const std::string& dir, drivers::SimDriver& sim, const SampleRe
 
 }  // namespace
 
+std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg) {
+#if PEDALWAVE_HAS_OBSERVER
+  if (!cfg.observer) return nullptr;
+  observer::ObserverParams op;
+  op.robot = cfg.robot;
+  if (op.robot.K.empty())  // one stiffness per joint, explicitly
+    op.robot.K.assign(static_cast<std::size_t>(op.robot.N - 1), op.robot.K_all);
+  op.period = 1.0 / cfg.runtime.rt.rate_hz;
+  if (cfg.driver.kind == config::DriverKind::kSim) {
+    const model::Scene& sc = cfg.driver.scene;
+    if (sc.ground_on) op.ground = sc.ground;  // nominal terrain of the onboard body model
+    if (sc.joint_friction_on) op.motor_viscous = sc.joint_friction.motor_viscous;
+    if (sc.torque_limit_on) op.u_max = sc.torque_limit.u_max;
+  }
+  return std::make_unique<observer::RuntimeObserver>(op);
+#else
+  (void)cfg;
+  return nullptr;
+#endif
+}
+
 DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& opt) {
   DaemonResult res;
   std::ostringstream log;
@@ -161,26 +182,8 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   std::unique_ptr<drivers::Driver> owned = opt.driver ? nullptr : make_driver(cfg, cfg.duration);
   drivers::Driver* driver = opt.driver ? opt.driver : owned.get();
   GaitStage stage(cfg.controller);
-  runtime::Observer* observer = nullptr;
-#if PEDALWAVE_HAS_OBSERVER
-  std::unique_ptr<observer::RuntimeObserver> obs;
-  if (cfg.observer) {
-    observer::ObserverParams op;
-    op.robot = cfg.robot;
-    if (op.robot.K.empty())  // one stiffness per joint, explicitly
-      op.robot.K.assign(static_cast<std::size_t>(op.robot.N - 1), op.robot.K_all);
-    op.period = 1.0 / cfg.runtime.rt.rate_hz;
-    if (cfg.driver.kind == config::DriverKind::kSim) {
-      const model::Scene& sc = cfg.driver.scene;
-      if (sc.ground_on) op.ground = sc.ground;  // nominal terrain of the onboard body model
-      if (sc.joint_friction_on) op.motor_viscous = sc.joint_friction.motor_viscous;
-      if (sc.torque_limit_on) op.u_max = sc.torque_limit.u_max;
-    }
-    obs = std::make_unique<observer::RuntimeObserver>(op);
-    observer = obs.get();
-  }
-#endif
-  auto rt = std::make_unique<runtime::Runtime>(cfg.runtime, *driver, stage, observer);
+  const std::unique_ptr<runtime::Observer> observer = make_observer(cfg);
+  auto rt = std::make_unique<runtime::Runtime>(cfg.runtime, *driver, stage, observer.get());
 
   std::vector<runtime::TelemetrySink*> sinks;
   SampleRecorder recorder(10);

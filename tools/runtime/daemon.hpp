@@ -4,6 +4,7 @@
 // or a fault, and reports: forward speed, loop timing percentiles, faults; optional plots.
 #pragma once
 
+#include <memory>
 #include <string>
 
 #include "pedalwave/config/daemon.hpp"
@@ -30,5 +31,10 @@ struct DaemonResult {
 };
 
 DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& opt);
+
+// The onboard observer as the daemon wires it: the configured robot (one stiffness per joint),
+// the loop period and, on the simulated plant, the scene's nominal ground, known motor friction
+// and torque limit. nullptr when the configuration turns it off or the observer layer is not built.
+std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg);
 
 }  // namespace pedalwave::app

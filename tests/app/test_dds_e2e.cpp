@@ -39,6 +39,7 @@
 #include <vector>
 
 #include "daemon.hpp"
+#include "dds_domain_lease.hpp"
 #include "gait_stage.hpp"
 #include "pedalwave/config/daemon.hpp"
 #include "pedalwave/drivers/sim_driver.hpp"
@@ -58,41 +59,8 @@ namespace {
 // Generous upper bound for anything we wait for (discovery, a run on a machine at load 15).
 constexpr auto kPatience = 120s;
 
-// An exclusive flock on /tmp/pedalwave-dds-domain-<id>.lock, ids 100..230, for the life of the
-// process — the same leases tests/telemetry takes, so parallel DDS tests never share a domain.
-class DomainLease {
- public:
-  DomainLease() {
-    for (std::uint32_t id = 100; id <= 230; ++id) {
-      const std::string path = "/tmp/pedalwave-dds-domain-" + std::to_string(id) + ".lock";
-      const int fd = ::open(path.c_str(), O_CREAT | O_RDWR | O_CLOEXEC, 0666);
-      if (fd < 0) continue;
-      if (::flock(fd, LOCK_EX | LOCK_NB) == 0) {
-        fd_ = fd;
-        id_ = id;
-        return;
-      }
-      ::close(fd);
-    }
-    throw std::runtime_error("no free DDS test domain id in 100..230");
-  }
-  ~DomainLease() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  DomainLease(const DomainLease&) = delete;
-  DomainLease& operator=(const DomainLease&) = delete;
-  std::uint32_t id() const { return id_; }
-
- private:
-  int fd_ = -1;
-  std::uint32_t id_ = 0;
-};
-
-// One lease per test process (the DDS domain instance is per process anyway).
-std::uint32_t domain_id() {
-  static DomainLease lease;
-  return lease.id();
-}
+// This process's own DDS domain (the same leases tests/telemetry takes).
+std::uint32_t domain_id() { return test::dds_domain_id(); }
 
 // The demo configuration (real-time loop clock, lockstep plant, telemetry on lo with the demo's
 // decimation) on this process's domain, for `cycles` cycles.

@@ -18,39 +18,11 @@
 #include <thread>
 #include <vector>
 
+#include "dds_domain_lease.hpp"
+
 extern char** environ;
 
 namespace pedalwave::test {
-
-// Holds an exclusive flock on /tmp/pedalwave-dds-domain-<id>.lock for the life of the process
-// (released by the kernel if the process dies): no two live holders share a domain id.
-class DomainLease {
- public:
-  DomainLease() {
-    for (std::uint32_t id = 100; id <= 230; ++id) {
-      const std::string path = "/tmp/pedalwave-dds-domain-" + std::to_string(id) + ".lock";
-      const int fd = ::open(path.c_str(), O_CREAT | O_RDWR | O_CLOEXEC, 0666);
-      if (fd < 0) continue;
-      if (::flock(fd, LOCK_EX | LOCK_NB) == 0) {
-        fd_ = fd;
-        id_ = id;
-        return;
-      }
-      ::close(fd);
-    }
-    throw std::runtime_error("no free DDS test domain id in 100..230");
-  }
-  ~DomainLease() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  DomainLease(const DomainLease&) = delete;
-  DomainLease& operator=(const DomainLease&) = delete;
-  std::uint32_t id() const { return id_; }
-
- private:
-  int fd_ = -1;
-  std::uint32_t id_ = 0;
-};
 
 // A child process (the test peer) with its stdout on a pipe.
 class Child {

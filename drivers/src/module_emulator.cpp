@@ -59,7 +59,8 @@ ModuleBank::ModuleBank(const EmulatorConfig& cfg, ModulePlant& plant)
 }
 
 bool ModuleBank::silent(int j) const {
-  return faults_active() && cfg_.faults.module[static_cast<std::size_t>(j)].silent;
+  return (faults_active() && cfg_.faults.module[static_cast<std::size_t>(j)].silent) ||
+         !plant_.answering(j);
 }
 
 bool ModuleBank::lose() noexcept {

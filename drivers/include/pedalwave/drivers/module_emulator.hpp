@@ -46,6 +46,9 @@ class ModulePlant {
   virtual void measure(Feedback& out) = 0;
   // Integrate the plant up to absolute time t_ns (CLOCK_MONOTONIC) [ns].
   virtual void advance_to(std::int64_t t_ns) = 0;
+  // false while module j does not answer (a plant-side fault, e.g. a scene's module_silent); the
+  // emulator then sends nothing for it, as for its own FaultConfig::module[j].silent.
+  virtual bool answering(int /*j*/) const { return true; }
 };
 
 enum class CounterFault : std::uint8_t {

@@ -1,6 +1,8 @@
 #include "pedalwave/config/daemon.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -156,6 +158,63 @@ void read_telemetry(const Reader& r, DaemonConfig& c) {
   t.eta_max = r.number("eta_max", t.eta_max);
 }
 
+// Timeouts from the rate and the bus unless the file gives them (README "Timeouts"):
+//   read deadline  = wake + read_budget · period, read_budget ≥ the bus's reply window (derived:
+//                    1.25 · window + 0.2 ms, within [0.5, 0.9] of the period);
+//   stale_timeout  = max(0.1 s, 20 periods): well above a loaded host's read tail (tens of ms
+//                    measured by the soak tool), far below a walking robot's time to harm itself;
+//   module silent  = a bus: max(3, 20 ms of cycles) consecutive missing replies (a late reply is
+//                    a missing one); the in-process plant: 3 (it never drops a reply).
+void derive_timeouts(const Reader& r, DaemonConfig& c) {
+  runtime::RuntimeConfig& rc = c.runtime;
+  const double period = 1.0 / rc.rt.rate_hz;
+  const bool have_rt = r.has("realtime");
+  const bool given_budget = have_rt && r["realtime"].has("read_budget");
+  const bool given_stale = have_rt && r["realtime"].has("stale_timeout");
+  double window = 0.0;
+  const DriverSelection& d = c.driver;
+  if (d.kind == DriverKind::kSocketCan)
+    window = drivers::can_reply_window_s({d.can.joints, period, d.can.bitrate, d.can.fd,
+                                          d.can.data_bitrate, d.can.max_load});
+  else if (d.kind == DriverKind::kSerial)
+    window = drivers::serial_reply_window_s({d.serial.joints, period, d.serial.baud,
+                                             d.serial.return_delay_s, d.serial.turnaround_s,
+                                             d.serial.max_load});
+  char buf[256];
+  std::string note;
+  if (given_budget) {
+    if (rc.read_budget * period < window) {
+      std::snprintf(buf, sizeof buf,
+                    "a fraction of the period that leaves the bus's replies their %.0f µs (≥ %.3f "
+                    "at %g Hz)", window * 1e6, window / period, rc.rt.rate_hz);
+      r["realtime"]["read_budget"].fail(buf);
+    }
+    std::snprintf(buf, sizeof buf, "read deadline %.2f of the period (given)", rc.read_budget);
+  } else if (window > 0) {
+    rc.read_budget = std::clamp((1.25 * window + 2e-4) / period, 0.5, 0.9);
+    std::snprintf(buf, sizeof buf, "read deadline %.2f of the period (derived: the replies need %.0f µs)",
+                  rc.read_budget, window * 1e6);
+  } else {
+    std::snprintf(buf, sizeof buf, "read deadline %.2f of the period", rc.read_budget);
+  }
+  note += buf;
+  if (!given_stale) rc.stale_timeout = std::max(0.1, 20.0 * period);
+  std::snprintf(buf, sizeof buf, ", stale_timeout %g s (%s)", rc.stale_timeout,
+                given_stale ? "given" : "derived: max(0.1 s, 20 periods)");
+  note += buf;
+  c.observer_missing_cycles =
+      d.kind == DriverKind::kSim ? 3 : std::max(3, static_cast<int>(std::ceil(0.02 * rc.rt.rate_hz)));
+  std::snprintf(buf, sizeof buf, ", module silent after %d missing replies (%.0f ms)",
+                c.observer_missing_cycles, 1e3 * c.observer_missing_cycles * period);
+  note += buf;
+  if (window > 0) {
+    std::snprintf(buf, sizeof buf, "; the modules' command lifetime should exceed %g s",
+                  rc.stale_timeout);
+    note += buf;
+  }
+  c.timing_note = note;
+}
+
 }  // namespace
 
 DaemonConfig parse_daemon_config(const std::string& text, const std::string& name,
@@ -196,6 +255,7 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
   }
   if (r.has("telemetry")) read_telemetry(r["telemetry"], c);
   c.log_file = r.string("log_file", "");
+  derive_timeouts(r, c);
   // The loop.
   runtime::RuntimeConfig& rc = c.runtime;
   if (c.duration > 0) rc.max_cycles = static_cast<std::uint64_t>(std::llround(c.duration * rc.rt.rate_hz));

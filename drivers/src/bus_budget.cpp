@@ -34,11 +34,13 @@ CanCycle can_cycle(int joints, bool fd, double bitrate, double data_bitrate) noe
   c.frames = 1;
   c.time_s = sync;
   if (!fd) {
+    // J feedback + J timing frames (PROTOCOL.md §1.1) + J commands + 1 gains frame.
     const double f8 = can_classic_frame_bits(8) / bitrate;
-    c.frames += 2 * joints + 1;
-    c.time_s += (2.0 * joints + 1.0) * f8;
+    c.frames += 3 * joints + 1;
+    c.time_s += (3.0 * joints + 1.0) * f8;
   } else {
-    const CanFdFrameBits fb = canfd_frame_bits(8);
+    // J feedback frames carrying their timing record (16 bytes) + the command groups.
+    const CanFdFrameBits fb = canfd_frame_bits(can::kFdFeedbackLen);
     c.frames += joints;
     c.time_s += joints * (fb.nominal / bitrate + fb.data / data_bitrate);
     for (int left = joints; left > 0; left -= can::kFdJointsPerFrame) {
@@ -153,6 +155,21 @@ BusBudget serial_bus_budget(const SerialBusSpec& s) noexcept {
   const int bytes = serial_bytes_per_cycle(s.joints);
   const double t = bytes * 10.0 / s.baud + s.joints * s.return_delay_s + 2.0 * s.turnaround_s;
   return finish(3 + s.joints, t, s.period_s, s.max_load, s.baud);
+}
+
+double can_reply_window_s(const CanBusSpec& s) noexcept {
+  if (s.joints <= 0 || !(s.bitrate > 0)) return 0.0;
+  const double sync = can_classic_frame_bits(2) / s.bitrate;
+  if (!s.fd) return sync + 2.0 * s.joints * can_classic_frame_bits(8) / s.bitrate;
+  const CanFdFrameBits fb = canfd_frame_bits(can::kFdFeedbackLen);
+  return sync + s.joints * (fb.nominal / s.bitrate + fb.data / s.data_bitrate);
+}
+
+double serial_reply_window_s(const SerialBusSpec& s) noexcept {
+  if (s.joints <= 0 || s.baud <= 0) return 0.0;
+  const double bytes = static_cast<double>(dxl::worst_packet_size(1 + 3)) - 1 + 14 + s.joints +
+                       s.joints * static_cast<double>(dxl::worst_packet_size(2 + dxl::kFeedbackBlockSize));
+  return bytes * 10.0 / s.baud + s.joints * s.return_delay_s + s.turnaround_s;
 }
 
 BusBudget check_serial_bus_budget(const SerialBusSpec& s) {

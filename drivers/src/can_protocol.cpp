@@ -110,6 +110,70 @@ CodecStatus decode_feedback(const can_frame& in, int& node, ModuleFeedback& fb) 
   return CodecStatus::kOk;
 }
 
+// ---- Timing record (classic bus) ----------------------------------------------------------------
+CodecStatus encode_timing(int node, const wire::ModuleTiming& t, std::uint8_t counter,
+                          can_frame& out) noexcept {
+  clear(out);
+  if (!node_ok(node)) return CodecStatus::kBadArgument;
+  out.can_id = kTimingBase + static_cast<canid_t>(node);
+  out.len = 8;
+  wire::put_u32(out.data + 0, t.sample_us);
+  put_u16(out.data + 4, wire::pack_age(t));
+  out.data[6] = static_cast<std::uint8_t>((counter & kClassicCounterMask) |
+                                          ((t.applied_tag & kClassicCounterMask) << 4));
+  out.data[7] = crc8_frame(out.can_id, out.data, 7);
+  return CodecStatus::kOk;
+}
+
+CodecStatus decode_timing(const can_frame& in, int& node, wire::ModuleTiming& t,
+                          std::uint8_t& counter) noexcept {
+  const CodecStatus s = check_classic(in, kTimingBase, node);
+  if (s != CodecStatus::kOk) return s;
+  t.sample_us = wire::get_u32(in.data + 0);
+  wire::unpack_age(get_u16(in.data + 4), t);
+  counter = in.data[6] & kClassicCounterMask;
+  t.applied_tag = static_cast<std::uint8_t>(in.data[6] >> 4);
+  return CodecStatus::kOk;
+}
+
+// ---- Feedback on an FD bus ----------------------------------------------------------------------
+CodecStatus encode_feedback_fd(int node, const ModuleFeedback& fb, const wire::ModuleTiming& t,
+                               canfd_frame& out) noexcept {
+  std::memset(&out, 0, sizeof out);
+  can_frame c{};
+  const CodecStatus s = encode_feedback(node, fb, c);
+  if (s == CodecStatus::kBadArgument) return s;
+  out.can_id = c.can_id;
+  out.len = kFdFeedbackLen;
+  out.flags = CANFD_BRS;
+  std::memcpy(out.data, c.data, 7);  // β, β̇, deflection, status|c (its CRC-8 is not sent)
+  out.data[7] = t.applied_tag;
+  wire::put_u32(out.data + 8, t.sample_us);
+  put_u16(out.data + 12, wire::pack_age(t));
+  put_u16(out.data + 14, crc16_frame(out.can_id, out.data, 14));
+  return s;
+}
+
+CodecStatus decode_feedback_fd(const canfd_frame& in, int& node, ModuleFeedback& fb,
+                               wire::ModuleTiming& t) noexcept {
+  if (in.can_id & kFlagMask) return CodecStatus::kWrongId;
+  const canid_t id = in.can_id & CAN_SFF_MASK;
+  if (id < kFeedbackBase + 1 || id > kFeedbackBase + static_cast<canid_t>(kMaxNode))
+    return CodecStatus::kWrongId;
+  node = static_cast<int>(id - kFeedbackBase);
+  if (in.len != kFdFeedbackLen) return CodecStatus::kWrongLength;
+  if (crc16_frame(id, in.data, 14) != get_u16(in.data + 14)) return CodecStatus::kChecksum;
+  fb.beta = wire::from_i16(get_i16(in.data + 0), wire::kBetaLsb);
+  fb.beta_dot = wire::from_i16(get_i16(in.data + 2), wire::kBetaDotLsb);
+  fb.deflection = wire::from_i16(get_i16(in.data + 4), wire::kDeflectionLsb);
+  fb.counter = in.data[6] & kClassicCounterMask;
+  fb.status = wire::unpack_module_status(static_cast<std::uint8_t>(in.data[6] >> 4));
+  t.applied_tag = in.data[7];
+  t.sample_us = wire::get_u32(in.data + 8);
+  wire::unpack_age(get_u16(in.data + 12), t);
+  return CodecStatus::kOk;
+}
+
 // ---- Classic command ----------------------------------------------------------------------------
 CodecStatus encode_command(int node, const JointCommand& cmd, can_frame& out) noexcept {
   clear(out);

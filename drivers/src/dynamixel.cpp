@@ -221,6 +221,9 @@ std::uint8_t encode_feedback_block(const FeedbackBlock& fb, std::uint8_t* o) noe
   wire::put_i16(o + 4, wire::to_i16(fb.deflection, wire::kDeflectionLsb, f));
   o[6] = wire::pack_module_status(fb.status);
   o[7] = fb.echo;
+  wire::put_u32(o + 8, fb.timing.sample_us);
+  wire::put_u16(o + 12, wire::pack_age(fb.timing));
+  o[14] = fb.timing.applied_tag;
   return f;
 }
 
@@ -230,6 +233,9 @@ void decode_feedback_block(const std::uint8_t* i, FeedbackBlock& fb) noexcept {
   fb.deflection = wire::from_i16(wire::get_i16(i + 4), wire::kDeflectionLsb);
   fb.status = wire::unpack_module_status(static_cast<std::uint8_t>(i[6] & 0x0Fu));
   fb.echo = i[7];
+  fb.timing.sample_us = wire::get_u32(i + 8);
+  wire::unpack_age(wire::get_u16(i + 12), fb.timing);
+  fb.timing.applied_tag = i[14];
 }
 
 }  // namespace pedalwave::drivers::dxl

@@ -5,10 +5,12 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 #include <string>
 
+#include "pedalwave/drivers/bus_budget.hpp"
 #include "pedalwave/drivers/can_protocol.hpp"
 #include "pedalwave/drivers/wire.hpp"
 #include "posix_util.hpp"
@@ -35,6 +37,17 @@ void sleep_ns(std::int64_t ns) noexcept {
 }
 
 }  // namespace
+
+// ---- Module clocks --------------------------------------------------------------------------------
+void spread_module_clocks(EmulatorConfig& cfg, double drift_ppm, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  for (int j = 0; j < cfg.joints && j < kMaxJoints; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    cfg.clock_offset_us[ju] = static_cast<std::uint32_t>(rng());
+    cfg.clock_drift_ppm[ju] =
+        cfg.joints > 1 ? drift_ppm * (1.0 - 2.0 * j / (cfg.joints - 1)) : drift_ppm;
+  }
+}
 
 // ---- ModuleBank ---------------------------------------------------------------------------------
 ModuleBank::ModuleBank(const EmulatorConfig& cfg, ModulePlant& plant)
@@ -91,30 +104,62 @@ void ModuleBank::apply_now() noexcept {
   plant_.apply(c);
 }
 
+std::uint32_t ModuleBank::module_clock_us(int j, std::int64_t t_ns) const noexcept {
+  const auto ju = static_cast<std::size_t>(j);
+  const double elapsed_ns = static_cast<double>(t_ns - clock_origin_ns_);
+  const double us = std::floor(elapsed_ns * (1.0 + cfg_.clock_drift_ppm[ju] * 1e-6) * 1e-3);
+  // Modulo 2³²: the module's free-running counter wraps.
+  return static_cast<std::uint32_t>(cfg_.clock_offset_us[ju] +
+                                    static_cast<std::uint32_t>(static_cast<std::int64_t>(us) & 0xFFFFFFFFll));
+}
+
+void ModuleBank::start_clock(std::int64_t t_ns) noexcept {
+  if (clock_started_) return;
+  clock_started_ = true;
+  clock_origin_ns_ = t_ns;
+  applied_ns_.fill(t_ns);
+  no_command_.fill(true);
+}
+
 void ModuleBank::on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept {
   ++syncs_;
   stats_.syncs.fetch_add(1, std::memory_order_relaxed);
-  // 1. Integrate up to the SYNC with the command applied so far, then sample.
+  start_clock(t_ns);
+  // 1. Integrate up to the SYNC with the commands applied so far.
   plant_.advance_to(t_ns);
+  // 2. Command lifetime: a module without a valid command for command_timeout turns its output
+  //    off now (and says so: "no command").
+  bool changed = false;
+  for (int j = 0; j < cfg_.joints; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    if (have_cmd_[ju] && t_ns - last_cmd_ns_[ju] > cfg_.command_timeout_ns) {
+      have_cmd_[ju] = false;
+      off_[ju] = true;
+      no_command_[ju] = true;
+      applied_ns_[ju] = t_ns;
+      changed = true;
+      stats_.lifetime_expired.fetch_add(1, std::memory_order_relaxed);
+    }
+  }
+  if (changed) apply_now();
+  // 3. Sample, stamp with each module's clock.
   plant_.measure(sample_);
   sample_.joints = cfg_.joints;
   sample_.seq = syncs_;
   sample_.stamp_ns = t_ns;
-  // 2. Command lifetime, then the latched commands take effect.
   for (int j = 0; j < cfg_.joints; ++j) {
     const auto ju = static_cast<std::size_t>(j);
-    const bool expired = have_cmd_[ju] && t_ns - last_cmd_ns_[ju] > cfg_.command_timeout_ns;
-    if (expired) {
-      have_cmd_[ju] = false;
-      stats_.lifetime_expired.fetch_add(1, std::memory_order_relaxed);
-    }
-    off_[ju] = !have_cmd_[ju] || cmd_off_[ju];
     sample_.status[ju] = static_cast<std::uint16_t>(
         (sample_.status[ju] & wire::kModuleStatusMask & ~kStatusTorqueOff) |
         (off_[ju] ? kStatusTorqueOff : 0));
+    wire::ModuleTiming& tm = timing_[ju];
+    tm.sample_us = module_clock_us(j, t_ns);
+    const std::uint32_t age = tm.sample_us - module_clock_us(j, applied_ns_[ju]);
+    tm.applied_age_us = static_cast<std::uint16_t>(age > wire::kAgeMaxUs ? wire::kAgeMaxUs : age);
+    tm.no_command = no_command_[ju];
+    tm.applied_tag = applied_tag_[ju];
   }
-  apply_now();
-  // 3. The counter each module echoes (rolling-counter faults).
+  // 4. The counter each module echoes (rolling-counter faults).
   for (int j = 0; j < cfg_.joints; ++j) {
     const auto ju = static_cast<std::size_t>(j);
     const CounterFault f = faults_active() ? cfg_.faults.module[ju].counter : CounterFault::kNone;
@@ -125,9 +170,13 @@ void ModuleBank::on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept {
 }
 
 void ModuleBank::latch(int j, double tau, double beta_ref, double beta_dot_ref, bool has_gains,
-                       double kp, double kd, bool torque_off, std::int64_t t_ns) noexcept {
+                       double kp, double kd, bool torque_off, std::uint8_t tag,
+                       std::int64_t t_ns) noexcept {
   if (j < 0 || j >= cfg_.joints) return;
   const auto ju = static_cast<std::size_t>(j);
+  // Up to the arrival the previous command acts; from it on this one.
+  if (clock_started_) plant_.advance_to(t_ns);
+  start_clock(t_ns);
   latched_.tau[ju] = tau;
   latched_.beta_ref[ju] = beta_ref;
   latched_.beta_dot_ref[ju] = beta_dot_ref;
@@ -138,14 +187,13 @@ void ModuleBank::latch(int j, double tau, double beta_ref, double beta_dot_ref, 
   last_cmd_ns_[ju] = t_ns;
   have_cmd_[ju] = true;
   cmd_off_[ju] = torque_off;
+  off_[ju] = torque_off;
+  applied_ns_[ju] = t_ns;
+  applied_tag_[ju] = tag;
+  no_command_[ju] = false;
   stats_.commands.fetch_add(1, std::memory_order_relaxed);
-  if (torque_off) {
-    stats_.torque_off_cmds.fetch_add(1, std::memory_order_relaxed);
-    if (!off_[ju]) {
-      off_[ju] = true;  // safe torque off acts at once, not at the next SYNC
-      apply_now();
-    }
-  }
+  if (torque_off) stats_.torque_off_cmds.fetch_add(1, std::memory_order_relaxed);
+  apply_now();
 }
 
 void ModuleBank::latch_gains(int j, double kp, double kd) noexcept {
@@ -156,7 +204,7 @@ void ModuleBank::latch_gains(int j, double kp, double kd) noexcept {
 
 // ---- CAN front end ------------------------------------------------------------------------------
 CanModuleEmulator::CanModuleEmulator(int fd, const EmulatorConfig& cfg, ModulePlant& plant)
-    : fd_(fd), bank_(cfg, plant) {
+    : fd_(fd), bank_(cfg, plant), wire_(cfg.bus.wire) {
   if (fd < 0 || !detail::set_nonblocking(fd))
     throw std::invalid_argument("CAN module emulator: fd = " + std::to_string(fd) +
                                 ", expected an open socket");
@@ -182,19 +230,33 @@ void CanModuleEmulator::run(const std::atomic<bool>& stop) {
   }
 }
 
+std::int64_t CanModuleEmulator::wire_ns(std::size_t mtu, int len) const noexcept {
+  const BusTimingConfig& b = bank_.config().bus;
+  double s = 0.0;
+  if (mtu == CANFD_MTU && bank_.config().fd) {
+    const CanFdFrameBits bits = canfd_frame_bits(len);
+    s = bits.nominal / b.bitrate + bits.data / b.data_bitrate;
+  } else {
+    s = can_classic_frame_bits(len) / b.bitrate;
+  }
+  return static_cast<std::int64_t>(std::llround(s * 1e9));
+}
+
 void CanModuleEmulator::handle(const canfd_frame& rec, std::size_t n, std::int64_t now) noexcept {
   can_frame c{};
-  if (n == CAN_MTU) {
-    std::memcpy(&c, &rec, CAN_MTU);
-    handle_classic(c, now);
-    return;
-  }
-  if (n != CANFD_MTU) {
+  if (n != CAN_MTU && n != CANFD_MTU) {
     bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
     return;
   }
+  // The frame has reached the modules when its last bit has crossed the bus.
+  const std::int64_t arrival = wire_.occupy(now, wire_ns(n, rec.len));
+  if (n == CAN_MTU) {
+    std::memcpy(&c, &rec, CAN_MTU);
+    handle_classic(c, arrival);
+    return;
+  }
   if (can::fd_to_classic(rec, c)) {
-    handle_classic(c, now);
+    handle_classic(c, arrival);
     return;
   }
   can::FdCommandGroup grp{};
@@ -207,7 +269,7 @@ void CanModuleEmulator::handle(const canfd_frame& rec, std::size_t n, std::int64
   for (int k = 0; k < grp.count; ++k) {
     const can::FdJointCommand& jc = grp.joint[static_cast<std::size_t>(k)];
     bank_.latch(grp.group * can::kFdJointsPerFrame + k, jc.tau, jc.beta_ref, jc.beta_dot_ref, true,
-                jc.kp, jc.kd, grp.torque_off, now);
+                jc.kp, jc.kd, grp.torque_off, grp.counter, arrival);
   }
 }
 
@@ -223,7 +285,7 @@ void CanModuleEmulator::handle_classic(const can_frame& f, std::int64_t now) noe
     can::JointCommand jc{};
     if (can::decode_command(f, node, jc) == can::CodecStatus::kOk)
       bank_.latch(can::joint_of_node(node), jc.tau, jc.beta_ref, jc.beta_dot_ref, false, 0.0, 0.0,
-                  jc.torque_off, now);
+                  jc.torque_off, jc.counter, now);
     else bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
   } else if (id > can::kGainsBase && id <= can::kGainsBase + can::kMaxNode) {
     can::JointGains g{};
@@ -234,46 +296,71 @@ void CanModuleEmulator::handle_classic(const can_frame& f, std::int64_t now) noe
   // Other ids (e.g. other modules' feedback on a real bus) are not ours.
 }
 
+void CanModuleEmulator::enqueue(std::int64_t due, const canfd_frame& f, std::size_t size) noexcept {
+  const std::size_t next = (tail_ + 1) % queue_.size();
+  if (next == head_) {  // queue full: the answer is lost
+    bank_.stats().replies_dropped.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  Pending& p = queue_[tail_];
+  p.due_ns = due;
+  p.frame = f;
+  p.size = size;
+  tail_ = next;
+}
+
 void CanModuleEmulator::on_sync(std::uint8_t counter, std::int64_t now) noexcept {
   bank_.on_sync(counter, now);
   const Feedback& s = bank_.sample();
-  const std::int64_t due = now + bank_.latency_ns();
+  const std::int64_t latency = bank_.latency_ns();
+  const bool fd = bank_.config().fd;
   EmulatorStats& st = bank_.stats();
+  // Which modules answer this SYNC (loss, silence, corruption drawn once per module).
+  std::array<bool, kMaxJoints> answer{};
+  std::array<bool, kMaxJoints> corrupt{};
   for (int j = 0; j < bank_.joints(); ++j) {
     const auto ju = static_cast<std::size_t>(j);
-    if (bank_.silent(j) || bank_.lose()) {
-      st.replies_dropped.fetch_add(1, std::memory_order_relaxed);
-      continue;
-    }
-    can::ModuleFeedback fb{s.beta[ju], s.beta_dot[ju], s.deflection[ju], s.status[ju],
-                           bank_.echo(j)};
-    can_frame f{};
-    can::encode_feedback(can::node_of_joint(j), fb, f);
-    if (bank_.corrupt()) {
-      const std::uint32_t r = bank_.random();
-      f.data[r % 8] ^= static_cast<std::uint8_t>(1u << ((r >> 8) % 8));
-      st.replies_corrupted.fetch_add(1, std::memory_order_relaxed);
-    }
-    const std::size_t next = (tail_ + 1) % queue_.size();
-    if (next == head_) {  // queue full: the answer is lost
-      st.replies_dropped.fetch_add(1, std::memory_order_relaxed);
-      continue;
-    }
-    Pending& p = queue_[tail_];
-    p.due_ns = due;
-    std::memset(&p.frame, 0, sizeof p.frame);
-    p.frame.can_id = f.can_id;
-    p.frame.len = f.len;
-    std::memcpy(p.frame.data, f.data, 8);
-    if (bank_.config().fd) {
-      p.frame.flags = CANFD_BRS;
-      p.size = CANFD_MTU;
-    } else {
-      p.size = CAN_MTU;  // struct can_frame has the same layout for the first CAN_MTU bytes
-    }
-    tail_ = next;
+    answer[ju] = !(bank_.silent(j) || bank_.lose());
+    if (!answer[ju]) st.replies_dropped.fetch_add(1, std::memory_order_relaxed);
+    corrupt[ju] = answer[ju] && bank_.corrupt();
+    if (corrupt[ju]) st.replies_corrupted.fetch_add(1, std::memory_order_relaxed);
   }
-  flush(now);
+  auto flip = [&](std::uint8_t* data, int len) {
+    const std::uint32_t r = bank_.random();
+    data[r % static_cast<std::uint32_t>(len)] ^= static_cast<std::uint8_t>(1u << ((r >> 8) % 8));
+  };
+  // Feedback frames in arbitration order (0x181, 0x182, …), then on a classic bus the timing
+  // frames (0x381, …); each leaves the wire after the one before.
+  for (int j = 0; j < bank_.joints(); ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    if (!answer[ju]) continue;
+    const can::ModuleFeedback fb{s.beta[ju], s.beta_dot[ju], s.deflection[ju], s.status[ju],
+                                 bank_.echo(j)};
+    canfd_frame out{};
+    std::size_t size = CAN_MTU;
+    if (fd) {
+      can::encode_feedback_fd(can::node_of_joint(j), fb, bank_.timing(j), out);
+      size = CANFD_MTU;
+    } else {
+      can_frame f{};
+      can::encode_feedback(can::node_of_joint(j), fb, f);
+      std::memcpy(&out, &f, CAN_MTU);
+    }
+    if (corrupt[ju]) flip(out.data, out.len);
+    enqueue(wire_.occupy(now, wire_ns(size, out.len)) + latency, out, size);
+  }
+  if (!fd) {
+    for (int j = 0; j < bank_.joints(); ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      if (!answer[ju]) continue;
+      can_frame f{};
+      can::encode_timing(can::node_of_joint(j), bank_.timing(j), bank_.echo(j), f);
+      canfd_frame out{};
+      std::memcpy(&out, &f, CAN_MTU);
+      enqueue(wire_.occupy(now, wire_ns(CAN_MTU, 8)) + latency, out, CAN_MTU);
+    }
+  }
+  flush(detail::monotonic_ns());
 }
 
 void CanModuleEmulator::flush(std::int64_t now) noexcept {
@@ -290,7 +377,7 @@ void CanModuleEmulator::flush(std::int64_t now) noexcept {
 
 // ---- Serial front end ---------------------------------------------------------------------------
 SerialModuleEmulator::SerialModuleEmulator(int fd, const EmulatorConfig& cfg, ModulePlant& plant)
-    : fd_(fd), bank_(cfg, plant) {
+    : fd_(fd), bank_(cfg, plant), wire_(cfg.bus.wire) {
   if (fd < 0 || !detail::set_nonblocking(fd))
     throw std::invalid_argument("serial module emulator: fd = " + std::to_string(fd) +
                                 ", expected an open tty/pty");
@@ -324,6 +411,7 @@ void SerialModuleEmulator::process(std::int64_t now) noexcept {
     const dxl::DxlStatus s = dxl::parse_packet(
         std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
     if (s == dxl::DxlStatus::kNeedMore) break;
+    packet_bytes_ = used;
     if (s == dxl::DxlStatus::kOk) handle(now);
     else bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
     pos += used;
@@ -348,8 +436,15 @@ void SerialModuleEmulator::enqueue(std::int64_t due, const std::uint8_t* p, std:
   tail_ = next;
 }
 
-void SerialModuleEmulator::handle(std::int64_t now) noexcept {
+std::int64_t SerialModuleEmulator::bytes_ns(std::size_t n) const noexcept {
+  return static_cast<std::int64_t>(std::llround(static_cast<double>(n) * 10.0 * 1e9 /
+                                                static_cast<double>(bank_.config().bus.baud)));
+}
+
+void SerialModuleEmulator::handle(std::int64_t read_ns) noexcept {
   const dxl::Packet& p = pkt_;
+  // The packet has reached the modules when its last byte has crossed the line.
+  const std::int64_t now = wire_.occupy(read_ns, bytes_ns(packet_bytes_));
   EmulatorStats& st = bank_.stats();
   const int joints = bank_.joints();
   auto ours = [&](std::uint8_t id) { return id >= 1 && id <= joints; };
@@ -368,7 +463,9 @@ void SerialModuleEmulator::handle(std::int64_t now) noexcept {
       return;
     }
     const Feedback& s = bank_.sample();
-    const std::int64_t due = now + bank_.latency_ns();
+    const std::int64_t latency = bank_.latency_ns();
+    const std::int64_t return_delay = static_cast<std::int64_t>(
+        std::llround(bank_.config().bus.return_delay_s * 1e9));
     for (std::size_t k = 4; k < p.param_count; ++k) {
       const std::uint8_t id = p.params[k];
       if (!ours(id)) continue;  // another device on the bus answers for itself
@@ -379,7 +476,7 @@ void SerialModuleEmulator::handle(std::int64_t now) noexcept {
         continue;
       }
       dxl::FeedbackBlock fb{s.beta[ju], s.beta_dot[ju], s.deflection[ju], s.status[ju],
-                            bank_.echo(j)};
+                            bank_.echo(j), bank_.timing(j)};
       std::uint8_t block[dxl::kFeedbackBlockSize];
       dxl::encode_feedback_block(fb, block);
       const std::uint8_t err =
@@ -394,9 +491,11 @@ void SerialModuleEmulator::handle(std::int64_t now) noexcept {
         out[first + r % span] ^= static_cast<std::uint8_t>(1u << ((r >> 8) % 8));
         st.replies_corrupted.fetch_add(1, std::memory_order_relaxed);
       }
-      enqueue(due, out.data(), n);
+      // In ID order: each module answers its return delay after the line went quiet.
+      const std::int64_t end = wire_.occupy(now, bytes_ns(n), return_delay);
+      enqueue(end + latency, out.data(), n);
     }
-    flush(now);
+    flush(detail::monotonic_ns());
     return;
   }
   if (p.instruction == dxl::kInstSyncWrite && p.id == dxl::kBroadcastId && p.param_count >= 4) {
@@ -411,7 +510,8 @@ void SerialModuleEmulator::handle(std::int64_t now) noexcept {
       if (!ours(id)) continue;
       dxl::CommandBlock c{};
       dxl::decode_command_block(p.params.data() + k + 1, c);
-      bank_.latch(id - 1, c.tau, c.beta_ref, c.beta_dot_ref, true, c.kp, c.kd, c.torque_off, now);
+      bank_.latch(id - 1, c.tau, c.beta_ref, c.beta_dot_ref, true, c.kp, c.kd, c.torque_off,
+                  c.counter, now);
     }
     return;
   }

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 #include <system_error>
@@ -105,6 +106,8 @@ SerialDriver::SerialDriver(int fd, const SerialConfig& cfg)
                              n) != dxl::DxlStatus::kOk)
       throw std::invalid_argument("SerialDriver: cannot build the Sync Read packet");
     sync_read_len_ = n;
+    seq_of_tag_.fill(kNoCommandSeq);
+    sync_wire_ns_ = std::llround(13 * 10.0 * 1e9 / cfg.baud);  // the 13-byte sync-counter write
   } catch (...) {
     if (fd >= 0) ::close(fd);
     fd_ = -1;
@@ -223,7 +226,7 @@ void SerialDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns) no
       break;
     case FrameAge::kLate:
       ++counters_.late;
-      status_[ju] |= kStatusStale;
+      status_[ju] |= kStatusLate;
       break;
     case FrameAge::kOutOfOrder:
       ++counters_.out_of_order;
@@ -272,6 +275,7 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
                          std::span<std::uint8_t>(sync_tx_.data(), 16), n);
   // Close the gap between the two packets (the Sync Read was built at offset 16).
   std::memmove(sync_tx_.data() + n, sync_tx_.data() + 16, sync_read_len_);
+  sync_lower_ns_ = detail::monotonic_ns() + sync_wire_ns_;
   const bool sent = write_all(sync_tx_.data(), n + sync_read_len_, deadline_ns);
   std::memmove(sync_tx_.data() + 16, sync_tx_.data() + n, sync_read_len_);
   if (sent) {
@@ -298,12 +302,20 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
   out.joints = joints_;
   out.seq = cycle_;
   out.stamp_ns = fresh_count_ > 0 ? stamp_ns_ : detail::monotonic_ns();
+  out.timing = FeedbackTiming::kModule;
   for (int j = 0; j < joints_; ++j) {
     const auto ju = static_cast<std::size_t>(j);
     std::uint16_t st = status_[ju];
+    out.sample_ns[ju] = 0;
     if (!rc_[ju].fresh) {
       st |= kStatusMissing;
       ++counters_.missing;
+    } else {
+      const wire::ModuleTiming& t = last_[ju].timing;
+      ModuleClock& clk = clocks_[ju];
+      out.sample_ns[ju] = clk.update(t.sample_us, sync_lower_ns_);
+      out.applied_ns[ju] = clk.to_host(t.sample_us - t.applied_age_us);
+      out.applied_seq[ju] = t.no_command ? kNoCommandSeq : seq_of_tag_[t.applied_tag];
     }
     const dxl::FeedbackBlock& fb = last_[ju];
     out.beta[ju] = fb.beta;
@@ -318,6 +330,7 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
 }
 
 bool SerialDriver::send_commands(const Command* cmd, bool all_off, std::int64_t until_ns) noexcept {
+  if (cmd) seq_of_tag_[counter_] = cmd->seq;
   for (int j = 0; j < joints_; ++j) {
     const auto ju = static_cast<std::size_t>(j);
     dxl::CommandBlock b{};

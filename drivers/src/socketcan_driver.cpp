@@ -89,15 +89,18 @@ std::unique_ptr<SocketCanDriver> SocketCanDriver::open(const SocketCanConfig& cf
   // Budget and joint count first: a refused configuration never touches the bus.
   check_can_bus_budget({cfg.joints, cfg.period_s, cfg.bitrate, cfg.fd, cfg.data_bitrate,
                         cfg.max_load});
-  std::array<can_filter, kMaxJoints> filters{};
-  for (int j = 0; j < cfg.joints; ++j)
-    filters[static_cast<std::size_t>(j)] = {can::kFeedbackBase + static_cast<canid_t>(
-                                                                     can::node_of_joint(j)),
-                                            CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG};
+  std::array<can_filter, 2 * kMaxJoints> filters{};
+  for (int j = 0; j < cfg.joints; ++j) {
+    const auto node = static_cast<canid_t>(can::node_of_joint(j));
+    filters[static_cast<std::size_t>(2 * j)] = {can::kFeedbackBase + node,
+                                                CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG};
+    filters[static_cast<std::size_t>(2 * j + 1)] = {can::kTimingBase + node,
+                                                    CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG};
+  }
   CanSocketOptions opt;
   opt.ifname = cfg.ifname;
   opt.fd_frames = cfg.fd;
-  opt.filters = std::span<const can_filter>(filters.data(), static_cast<std::size_t>(cfg.joints));
+  opt.filters = std::span<const can_filter>(filters.data(), static_cast<std::size_t>(2 * cfg.joints));
   return std::make_unique<SocketCanDriver>(open_can_socket(opt), cfg);
 }
 
@@ -113,6 +116,8 @@ SocketCanDriver::SocketCanDriver(int fd, const SocketCanConfig& cfg)
     // Kernel receive timestamps also work on AF_UNIX sockets; harmless if refused.
     const int one = 1;
     (void)::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one);
+    seq_of_tag_.fill(kNoCommandSeq);
+    sync_wire_ns_ = std::llround(can_classic_frame_bits(2) / cfg.bitrate * 1e9);
   } catch (...) {
     if (fd >= 0) ::close(fd);
     fd_ = -1;
@@ -220,7 +225,12 @@ void SocketCanDriver::handle_frame(const canfd_frame& f, std::size_t nbytes,
       return;
     }
   } else if (nbytes == CANFD_MTU) {
-    if (!can::fd_to_classic(f, c)) {  // FD frames longer than 8 bytes are never feedback
+    if (f.len == can::kFdFeedbackLen) {  // an FD bus's feedback frame (with the timing record)
+      ++counters_.frames_rx;
+      handle_feedback_fd(f, stamp_ns);
+      return;
+    }
+    if (!can::fd_to_classic(f, c)) {
       ++counters_.frames_rx;
       ++counters_.malformed;
       return;
@@ -231,7 +241,11 @@ void SocketCanDriver::handle_frame(const canfd_frame& f, std::size_t nbytes,
     return;
   }
   ++counters_.frames_rx;
-  handle_feedback(c, stamp_ns);
+  const canid_t id = c.can_id & CAN_SFF_MASK;
+  if (id > can::kTimingBase && id <= can::kTimingBase + static_cast<canid_t>(can::kMaxNode))
+    handle_timing(c, stamp_ns);
+  else
+    handle_feedback(c, stamp_ns);
 }
 
 void SocketCanDriver::handle_error_frame(const can_frame& f) noexcept {
@@ -268,6 +282,29 @@ void SocketCanDriver::handle_feedback(const can_frame& f, std::int64_t stamp_ns)
     ++counters_.malformed;
     return;
   }
+  take_feedback(j, fb, nullptr, stamp_ns);
+}
+
+void SocketCanDriver::handle_feedback_fd(const canfd_frame& f, std::int64_t stamp_ns) noexcept {
+  int node = 0;
+  can::ModuleFeedback fb{};
+  wire::ModuleTiming t{};
+  const can::CodecStatus s = can::decode_feedback_fd(f, node, fb, t);
+  const int j = can::joint_of_node(node);
+  if (s == can::CodecStatus::kChecksum) {
+    ++counters_.checksum;
+    if (j >= 0 && j < joints_) status_[static_cast<std::size_t>(j)] |= kStatusChecksum;
+    return;
+  }
+  if (s != can::CodecStatus::kOk || j < 0 || j >= joints_) {
+    ++counters_.malformed;
+    return;
+  }
+  take_feedback(j, fb, &t, stamp_ns);
+}
+
+void SocketCanDriver::take_feedback(int j, const can::ModuleFeedback& fb,
+                                    const wire::ModuleTiming* t, std::int64_t stamp_ns) noexcept {
   const auto ju = static_cast<std::size_t>(j);
   FrameAge age = classify_frame(rc_[ju], fb.counter, sync_counter_, cycle_, 16);
   if (age == FrameAge::kFresh && stamp_ns > deadline_ns_) {
@@ -280,6 +317,10 @@ void SocketCanDriver::handle_feedback(const can_frame& f, std::int64_t stamp_ns)
       last_[ju] = fb;
       ++fresh_count_;
       if (stamp_ns > stamp_ns_) stamp_ns_ = stamp_ns;
+      if (t) {
+        timing_[ju] = *t;
+        have_timing_[ju] = true;
+      }
       break;
     case FrameAge::kDuplicate:
       ++counters_.duplicate;
@@ -287,7 +328,7 @@ void SocketCanDriver::handle_feedback(const can_frame& f, std::int64_t stamp_ns)
       break;
     case FrameAge::kLate:
       ++counters_.late;
-      status_[ju] |= kStatusStale;
+      status_[ju] |= kStatusLate;
       break;
     case FrameAge::kOutOfOrder:
       ++counters_.out_of_order;
@@ -296,12 +337,36 @@ void SocketCanDriver::handle_feedback(const can_frame& f, std::int64_t stamp_ns)
   }
 }
 
+// Classic bus: the timing record of this cycle's sample comes in its own frame (same echo).
+void SocketCanDriver::handle_timing(const can_frame& f, std::int64_t stamp_ns) noexcept {
+  int node = 0;
+  wire::ModuleTiming t{};
+  std::uint8_t echo = 0;
+  const can::CodecStatus s = can::decode_timing(f, node, t, echo);
+  const int j = can::joint_of_node(node);
+  if (s == can::CodecStatus::kChecksum) {
+    ++counters_.checksum;
+    return;
+  }
+  if (s != can::CodecStatus::kOk || j < 0 || j >= joints_) {
+    ++counters_.malformed;
+    return;
+  }
+  const auto ju = static_cast<std::size_t>(j);
+  if (echo != (sync_counter_ & can::kClassicCounterMask) || stamp_ns > deadline_ns_ ||
+      have_timing_[ju])
+    return;  // an older SYNC's, a late or a repeated record: no timing for this cycle
+  timing_[ju] = t;
+  have_timing_[ju] = true;
+}
+
 IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, Feedback& out) {
   ++cycle_;
   sync_counter_ = static_cast<std::uint8_t>(sync_counter_ + 1);
   for (int j = 0; j < joints_; ++j) {
     drivers::begin_cycle(rc_[static_cast<std::size_t>(j)]);
     status_[static_cast<std::size_t>(j)] = 0;
+    have_timing_[static_cast<std::size_t>(j)] = false;
   }
   fresh_count_ = 0;
   stamp_ns_ = 0;
@@ -315,9 +380,17 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
   can_frame sync{};
   can::encode_sync(sync_counter_, sync);
   bool dropped = false, down = false;
+  sync_lower_ns_ = detail::monotonic_ns() + sync_wire_ns_;
   note_tx(send_classic(sync), dropped, down);
 
-  while (fresh_count_ < joints_ && !peer_closed_) {
+  // Until every joint has its fresh feedback (and, on a classic bus, its timing frame).
+  auto complete = [&]() noexcept {
+    if (fresh_count_ < joints_) return false;
+    for (int j = 0; j < joints_; ++j)
+      if (!have_timing_[static_cast<std::size_t>(j)]) return false;
+    return true;
+  };
+  while (!complete() && !peer_closed_) {
     const std::int64_t remaining = deadline_ns - detail::monotonic_ns();
     if (remaining <= 0) break;
     pollfd p{fd_, POLLIN, 0};
@@ -330,13 +403,24 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
   out.joints = joints_;
   out.seq = cycle_;
   out.stamp_ns = fresh_count_ > 0 ? stamp_ns_ : detail::monotonic_ns();
+  out.timing = FeedbackTiming::kModule;
   const bool bus_bad = down || bus_off_ || error_passive_ || bus_error_cycle_;
   for (int j = 0; j < joints_; ++j) {
     const auto ju = static_cast<std::size_t>(j);
     std::uint16_t st = status_[ju];
+    out.sample_ns[ju] = 0;
     if (!rc_[ju].fresh) {
       st |= kStatusMissing;
       ++counters_.missing;
+    } else if (!have_timing_[ju]) {
+      st |= kStatusNoTiming;
+    } else {
+      const wire::ModuleTiming& t = timing_[ju];
+      ModuleClock& clk = clocks_[ju];
+      out.sample_ns[ju] = clk.update(t.sample_us, sync_lower_ns_);
+      out.applied_ns[ju] = clk.to_host(t.sample_us - t.applied_age_us);
+      const unsigned mask = fd_mode_ ? 0xFFu : can::kClassicCounterMask;
+      out.applied_seq[ju] = t.no_command ? kNoCommandSeq : seq_of_tag_[t.applied_tag & mask];
     }
     if (bus_bad) st |= kStatusBusError;
     const can::ModuleFeedback& fb = last_[ju];
@@ -372,6 +456,8 @@ int SocketCanDriver::pick_gains_joint(const Command& cmd) noexcept {
 IoStatus SocketCanDriver::write(const Command& cmd) {
   bool dropped = false, down = false;
   const std::uint8_t ctr = sync_counter_;
+  // The modules will name this command by its tag: classic frames carry c mod 16, FD groups c.
+  seq_of_tag_[fd_mode_ ? ctr : (ctr & can::kClassicCounterMask)] = cmd.seq;
   if (!fd_mode_) {
     for (int j = 0; j < joints_; ++j) {
       const auto ju = static_cast<std::size_t>(j);

@@ -45,27 +45,29 @@ TEST(BusBudget, FiveJointsAtOneKilohertzClassicIsRefusedWithNumbersAndOptions) {
   s.bitrate = 1e6;
   const pd::BusBudget b = pd::can_bus_budget(s);
   EXPECT_FALSE(b.fits);
-  EXPECT_EQ(b.frames, 1 + 5 + 5 + 1);
-  EXPECT_NEAR(b.bits_needed, 75 + 11 * 135, 1e-6);  // 1560
-  EXPECT_NEAR(b.load, 1.56, 1e-9);
+  EXPECT_EQ(b.frames, 1 + 5 + 5 + 5 + 1);  // SYNC, feedback, timing, commands, gains
+  EXPECT_NEAR(b.bits_needed, 75 + 16 * 135, 1e-6);  // 2235
+  EXPECT_NEAR(b.load, 2.235, 1e-9);
   const std::string m = refusal(s);
   ASSERT_FALSE(m.empty());
-  EXPECT_NE(m.find("1560 bits"), std::string::npos) << m;
+  EXPECT_NE(m.find("2235 bits"), std::string::npos) << m;
   EXPECT_NE(m.find("800 bits available"), std::string::npos) << m;
-  EXPECT_NE(m.find("load 156 %"), std::string::npos) << m;
+  EXPECT_NE(m.find("load 224 %"), std::string::npos) << m;
   EXPECT_NE(m.find("lower the cycle rate"), std::string::npos) << m;
   EXPECT_NE(m.find("CAN FD"), std::string::npos) << m;
   EXPECT_NE(m.find("second bus"), std::string::npos) << m;
-  EXPECT_NE(m.find("≤ 2 joints per bus"), std::string::npos) << m;
+  EXPECT_NE(m.find("≤ 1 joints per bus"), std::string::npos) << m;
 }
 
 TEST(BusBudget, FitsWhenItShould) {
   pd::CanBusSpec s;
-  s.joints = 2;
-  EXPECT_TRUE(pd::check_can_bus_budget(s).fits);  // 75 + 5·135 = 750 bits ≤ 800
+  s.joints = 1;
+  EXPECT_TRUE(pd::check_can_bus_budget(s).fits);  // 75 + 4·135 = 615 bits ≤ 800
   s.joints = 5;
-  s.period_s = 2e-3;  // 500 Hz: 1560 ≤ 1600
+  s.period_s = 4e-3;  // 250 Hz: 2235 ≤ 3200
   EXPECT_TRUE(pd::check_can_bus_budget(s).fits);
+  s.period_s = 2e-3;  // 500 Hz: 2235 > 1600
+  EXPECT_FALSE(pd::can_bus_budget(s).fits);
   s.period_s = 1e-3;
   s.fd = true;  // CAN FD 1 / 5 Mbit/s
   const pd::BusBudget fd = pd::check_can_bus_budget(s);
@@ -90,18 +92,22 @@ TEST(BusBudget, InvalidSpecIsRefusedNamingTheItem) {
 }
 
 TEST(BusBudget, SerialBus) {
-  // 13 (sync counter) + 14+J (Sync Read) + J·22 (status) + Sync Write worst case.
-  EXPECT_EQ(pd::serial_bytes_per_cycle(5), 13 + 19 + 5 * 22 + (7 + 70 + 23 + 2));
+  // 13 (sync counter) + 14+J (Sync Read) + J·31 (status: 15-byte block) + Sync Write worst case.
+  EXPECT_EQ(pd::serial_bytes_per_cycle(5), 13 + 19 + 5 * 31 + (7 + 70 + 23 + 2));
   pd::SerialBusSpec s;
   s.joints = 5;
   s.baud = 4'000'000;
+  s.period_s = 2e-3;
   const pd::BusBudget ok = pd::check_serial_bus_budget(s);
   EXPECT_TRUE(ok.fits);
-  EXPECT_NEAR(ok.time_needed_s, 244 * 10.0 / 4e6 + 5 * 20e-6, 1e-12);
+  EXPECT_NEAR(ok.time_needed_s, 289 * 10.0 / 4e6 + 5 * 20e-6, 1e-12);
+  s.period_s = 1e-3;  // 822.5 µs > 800 µs
+  EXPECT_FALSE(pd::serial_bus_budget(s).fits);
+  s.period_s = 2e-3;
   s.baud = 1'000'000;
   const std::string m = refusal(s);
-  EXPECT_NE(m.find("244 bytes per cycle"), std::string::npos) << m;
-  EXPECT_NE(m.find("load 254 %"), std::string::npos) << m;
+  EXPECT_NE(m.find("289 bytes per cycle"), std::string::npos) << m;
+  EXPECT_NE(m.find("load 150 %"), std::string::npos) << m;
   EXPECT_NE(m.find("raise the baud rate"), std::string::npos) << m;
   EXPECT_NE(m.find("second bus"), std::string::npos) << m;
   // Delays alone larger than the period.

@@ -67,7 +67,7 @@ TEST(Dynamixel, ParseStatusPacketWithStuffedPayload) {
   std::array<std::uint8_t, 64> buf{};
   std::size_t n = 0;
   ASSERT_EQ(dxl::build_status(4, 0, block, buf, n), DxlStatus::kOk);
-  EXPECT_EQ(n, 7 + 2 + 8 + 1 + 2);  // one stuffing byte
+  EXPECT_EQ(n, 7 + 2 + dxl::kFeedbackBlockSize + 1 + 2);  // one stuffing byte
   dxl::Packet p{};
   std::size_t used = 0;
   ASSERT_EQ(dxl::parse_packet(std::span<const std::uint8_t>(buf.data(), n), p, used),
@@ -77,7 +77,7 @@ TEST(Dynamixel, ParseStatusPacketWithStuffedPayload) {
   EXPECT_EQ(p.instruction, dxl::kInstStatus);
   EXPECT_EQ(p.error, 0);
   ASSERT_EQ(p.param_count, dxl::kFeedbackBlockSize);
-  EXPECT_EQ(std::memcmp(p.params.data(), block, 8), 0);
+  EXPECT_EQ(std::memcmp(p.params.data(), block, dxl::kFeedbackBlockSize), 0);
 }
 
 TEST(Dynamixel, ParserHandlesGarbagePartialAndBadPackets) {

@@ -211,7 +211,7 @@ TEST(SerialFaults, LossAndLatency) {
     EXPECT_EQ(c.missing, 3u * 80u);
     EXPECT_LE(c.late, 3u * 79u);
     EXPECT_GE(c.late, 3u * 78u);
-    for (int j = 0; j < 3; ++j) EXPECT_GE(count_bit(log, 0, j, pd::kStatusStale), 40);
+    for (int j = 0; j < 3; ++j) EXPECT_GE(count_bit(log, 0, j, pd::kStatusLate), 40);
     EXPECT_EQ(c.duplicate + c.out_of_order + c.checksum, 0u);
   }
 }
@@ -291,7 +291,7 @@ TEST(SerialScripted, SyncAndSyncReadOnTheWire) {
   EXPECT_EQ(p.instruction, dxl::kInstSyncRead);
   ASSERT_EQ(p.param_count, 6u);
   EXPECT_EQ(p.params[0], 120);
-  EXPECT_EQ(p.params[2], 8);
+  EXPECT_EQ(p.params[2], dxl::kFeedbackBlockSize);
   EXPECT_EQ(p.params[4], 1);
   EXPECT_EQ(p.params[5], 2);
   EXPECT_EQ(used + used2, static_cast<std::size_t>(n));

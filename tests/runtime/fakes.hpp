@@ -177,10 +177,10 @@ class FakeController : public rt::Controller {
 class FakeObserver : public rt::Observer {
  public:
   void reset() override { ++resets; }
-  rt::Verdict observe(const dr::Feedback& fb, const dr::Command& last_cmd, double, double,
+  rt::Verdict observe(const dr::Feedback& fb, const dr::CommandHistory& cmds, double, double,
                       rt::CycleSample& s) override {
     const std::uint64_t k = calls++;
-    last_cmd_torque_off = last_cmd.torque_off;
+    last_cmd_torque_off = cmds.last().torque_off;
     for (int j = 0; j < fb.joints; ++j) s.residual[static_cast<std::size_t>(j)] = 1e-3 * j;
     if (k >= from && k - from < span) return verdict;
     return {};

@@ -22,6 +22,7 @@
 #include "pedalwave/config/daemon.hpp"
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/drivers/can_protocol.hpp"
+#include "pedalwave/drivers/module_clock.hpp"
 #include "pedalwave/drivers/serial_driver.hpp"
 #include "pedalwave/drivers/socketcan_driver.hpp"
 #include "pedalwave/vrobot/virtual_robot.hpp"
@@ -64,14 +65,23 @@ struct WalkSetup {
   Transport transport = Transport::kSim;
   double rate_hz = 1000;       // loop rate [Hz]
   double duration = 12;        // run time = loop cycles / rate [s]
-  double stale_timeout = 0.2;  // runtime's stale-data limit [s]
-  double read_budget = 0.5;    // driver read deadline = wake + budget·period [-]
+  double stale_timeout = 0.2;  // runtime's stale-data limit [s]; 0 = the daemon's derived default
+  double read_budget = 0.5;    // driver read deadline = wake + budget·period [-]; 0 = derived
   bool lockstep = false;       // lockstep loop clock (kSim and the bus model only)
   double k_c = 0.0;            // adaptive gain
   double h = 0.0;              // kSim: integrator step override [s]; 0 = the scene's
   double command_timeout = 0.05;  // modules' command lifetime [s]
   int cpu = -1;                // pin the loop thread to this CPU; −1 = no pinning
-  bool observer = false;       // the onboard observer in the cycle (see vrobot_walk_test.cpp)
+  bool observer = false;       // the onboard observer in the cycle
+  // The deployment path as configured for a robot: SCHED_FIFO for the loop (priority) and for the
+  // virtual robot's modules' thread (robot_priority; real modules never wait for the host's CPU),
+  // telemetry over DDS on loopback in domain telemetry_domain.
+  int priority = 0;            // loop thread SCHED_FIFO priority; 0 = normal scheduling
+  int robot_priority = 0;      // modules' thread SCHED_FIFO priority; 0 = normal scheduling
+  bool telemetry = false;
+  std::uint32_t telemetry_domain = 0;
+  double clock_drift_ppm = 0;  // modules' clock rate errors, spread over ±this [ppm]
+  double plant_max_step = 0;   // virtual robot's largest plant step [s]; 0 = its default
 };
 
 // GoogleTest prints a parameter with these instead of its bytes.
@@ -98,16 +108,23 @@ inline config::DaemonConfig daemon_config(const WalkSetup& s, const model::Scene
       driver = "{type: serial, device: /dev/null, baud: 4000000, return_delay: 2.0e-5}";
       break;
   }
+  std::string timeouts;
+  if (s.stale_timeout > 0) timeouts += ", stale_timeout: " + std::to_string(s.stale_timeout);
+  if (s.read_budget > 0) timeouts += ", read_budget: " + std::to_string(s.read_budget);
+  const std::string telemetry =
+      s.telemetry ? "{enabled: true, interface: lo, domain_id: " + std::to_string(s.telemetry_domain) + "}"
+                  : std::string("{enabled: false}");
   char yaml[1024];
   std::snprintf(yaml, sizeof yaml,
                 "name: vrobot-%s\nrate_hz: %g\nduration: %g\nrobot: {N: %d}\ndriver: %s\n"
                 "controller: {k_c: %g, pd_placement: module}\n"
-                "realtime: {clock: %s, stale_timeout: %g, read_budget: %g, cpu: %d}\n"
+                "realtime: {clock: %s, cpu: %d, priority: %d, lock_memory: %s%s}\n"
                 "observer: {enabled: %s}\n"
-                "telemetry: {enabled: false}\n",
+                "telemetry: %s\n",
                 name(s.transport), s.rate_hz, s.duration, scene.robot.N, driver.c_str(), s.k_c,
-                s.lockstep ? "lockstep" : "realtime", s.stale_timeout, s.read_budget, s.cpu,
-                s.observer ? "true" : "false");
+                s.lockstep ? "lockstep" : "realtime", s.cpu, s.priority,
+                s.priority > 0 ? "true" : "false", timeouts.c_str(), s.observer ? "true" : "false",
+                telemetry.c_str());
   config::DaemonConfig c =
       config::parse_daemon_config(yaml, std::string("vrobot-") + name(s.transport) + ".yaml",
                                   PEDALWAVE_CONFIG_DIR "/runtime");
@@ -122,9 +139,9 @@ inline config::DaemonConfig daemon_config(const WalkSetup& s, const model::Scene
   return c;
 }
 
-inline app::DaemonOptions quiet(drivers::Driver* d = nullptr) {
+inline app::DaemonOptions quiet(drivers::Driver* d = nullptr, bool telemetry = false) {
   app::DaemonOptions o;
-  o.telemetry = false;
+  o.telemetry = telemetry;
   o.print = false;
   o.driver = d;
   return o;
@@ -145,6 +162,7 @@ struct WalkResult {
   vrobot::PlantProgress plant{};
   bool all_modules_off = false;   // every module's output stage off at the end (ModuleBank)
   std::string report;             // the virtual robot's report
+  std::string robot_thread;       // what the modules' thread got (SCHED_FIFO or why not)
 };
 
 // The in-process simulated plant (lockstep loop clock and plant: deterministic).
@@ -159,23 +177,30 @@ inline WalkResult walk_sim(WalkSetup s, const model::Scene& scene) {
 }
 
 // Options of the virtual robot for a walk of `s` (recording sized for the run).
-inline vrobot::VirtualRobotOptions robot_options(const WalkSetup& s, const drivers::FaultConfig& faults) {
+inline vrobot::VirtualRobotOptions robot_options(const WalkSetup& s, const model::Scene& scene,
+                                                 const drivers::FaultConfig& faults) {
   vrobot::VirtualRobotOptions vo;
   vo.bus = s.transport == Transport::kSerial ? vrobot::Bus::kSerial : vrobot::Bus::kCan;
   vo.emulator.fd = s.transport == Transport::kCanFd;
   vo.emulator.faults = faults;
   vo.emulator.command_timeout_ns = static_cast<std::int64_t>(s.command_timeout * 1e9);
   vo.plant.record_capacity = static_cast<std::size_t>(s.duration * 100 * 2) + 1000;
+  vo.thread_priority = s.robot_priority;
+  if (s.plant_max_step > 0) vo.max_step = s.plant_max_step;
+  // The virtual robot's bus as the daemon's driver section configures it (wire times).
+  vo.emulator.joints = scene.robot.N - 1;
+  drivers::spread_module_clocks(vo.emulator, s.clock_drift_ppm, 5);
   return vo;
 }
 
 // Runs the daemon (configuration cfg) with `drv` against the started `robot`, waits until the
 // safe stop's torque-off reached the modules, stops the robot and collects the results.
 inline WalkResult run_walk(const config::DaemonConfig& cfg, vrobot::VirtualRobot& robot,
-                           drivers::Driver& drv) {
+                           drivers::Driver& drv, bool telemetry = false) {
   robot.start();
   WalkResult r;
-  r.daemon = app::run_daemon(cfg, quiet(&drv));
+  r.robot_thread = robot.thread_note();
+  r.daemon = app::run_daemon(cfg, quiet(&drv, telemetry));
   // The daemon's last driver call was safe_stop(): wait until the modules latched it.
   const int J = robot.joints();
   // (A loaded or emulated machine may still be working through its backlog: wait generously.)
@@ -200,13 +225,17 @@ inline WalkResult run_walk(const config::DaemonConfig& cfg, vrobot::VirtualRobot
 inline WalkResult walk_bus(const WalkSetup& s, const model::Scene& scene,
                            const drivers::FaultConfig& faults = {}) {
   const config::DaemonConfig cfg = daemon_config(s, scene);
-  const vrobot::VirtualRobotOptions vo = robot_options(s, faults);
+  vrobot::VirtualRobotOptions vo = robot_options(s, scene, faults);
+  vo.emulator.bus.bitrate = cfg.driver.can.bitrate;
+  vo.emulator.bus.data_bitrate = cfg.driver.can.data_bitrate;
+  vo.emulator.bus.baud = cfg.driver.serial.baud;
+  vo.emulator.bus.return_delay_s = cfg.driver.serial.return_delay_s;
   if (s.transport == Transport::kSerial) {
     vrobot::Pty pty = vrobot::open_pty();
     vrobot::VirtualRobot robot(scene, pty.master, vo);
     drivers::SerialDriver drv(drivers::open_serial_port(pty.slave_path, cfg.driver.serial.baud),
                               cfg.driver.serial);
-    WalkResult r = run_walk(cfg, robot, drv);
+    WalkResult r = run_walk(cfg, robot, drv, s.telemetry);
     ::close(pty.slave_keep);
     return r;
   }
@@ -215,19 +244,26 @@ inline WalkResult walk_bus(const WalkSetup& s, const model::Scene& scene,
     throw std::system_error(errno, std::generic_category(), "socketpair");
   vrobot::VirtualRobot robot(scene, sv[0], vo);
   drivers::SocketCanDriver drv(sv[1], cfg.driver.can);
-  return run_walk(cfg, robot, drv);
+  return run_walk(cfg, robot, drv, s.telemetry);
 }
 
 // The deterministic part of a bus, in lockstep: read() is a SYNC at the loop's time (the modules
-// integrate the plant to it, sample, and apply the command latched since the previous SYNC), the
-// sample goes through the CAN feedback codec, write() sends the command through the CAN FD command
-// codec (quantization of τ, β_ref, β̇_ref, kp, kd) and latches it. With delay = false the command
-// takes effect at once (a second SYNC at the same instant: the plant does not move), i.e. only the
-// quantization differs from the in-process simulated plant. No loss, no latency, no jitter.
+// integrate the plant to it, sample, stamp the sample with their own drifting clocks), the sample
+// goes through the CAN feedback codec, write() sends the command through the CAN FD command codec
+// (quantization of τ, β_ref, β̇_ref, kp, kd) and the modules apply it `delay_ns` after the sample
+// (a transport delay: the plant integrates the old command up to then). The timing records go
+// through the drivers' ModuleClock estimate, with the SYNC's exact send time as the lower bound,
+// into FeedbackTiming::kModule feedback — the real drivers' path, without loss, latency or jitter.
 class BusModelDriver final : public drivers::Driver {
  public:
-  BusModelDriver(vrobot::SimulationPlant& plant, bool delay) : plant_(plant), delay_(delay),
-      bank_(config(plant.joints()), plant) {}
+  // report_timing = false hands the same data on as FeedbackTiming::kNominal (no sample times, no
+  // applied commands): what the observer assumed before it used the modules' timing records.
+  BusModelDriver(vrobot::SimulationPlant& plant, std::int64_t delay_ns, double drift_ppm = 40.0,
+                 bool report_timing = true)
+      : plant_(plant), delay_ns_(delay_ns), report_timing_(report_timing),
+        bank_(config(plant.joints(), drift_ppm), plant) {
+    seq_of_tag_.fill(drivers::kNoCommandSeq);
+  }
   int joints() const override { return bank_.joints(); }
   drivers::IoStatus read(std::int64_t now_ns, std::int64_t, drivers::Feedback& out) override {
     now_ = now_ns;
@@ -236,6 +272,7 @@ class BusModelDriver final : public drivers::Driver {
     out.joints = bank_.joints();
     out.seq = ++seq_;
     out.stamp_ns = now_ns;
+    out.timing = report_timing_ ? drivers::FeedbackTiming::kModule : drivers::FeedbackTiming::kNominal;
     for (int j = 0; j < bank_.joints(); ++j) {
       const auto k = static_cast<std::size_t>(j);
       can_frame f{};
@@ -248,11 +285,16 @@ class BusModelDriver final : public drivers::Driver {
       out.beta_dot[k] = m.beta_dot;
       out.deflection[k] = m.deflection;
       out.status[k] = m.status;
+      const drivers::wire::ModuleTiming& t = bank_.timing(j);
+      out.sample_ns[k] = clocks_[k].update(t.sample_us, now_ns);
+      out.applied_ns[k] = clocks_[k].to_host(t.sample_us - t.applied_age_us);
+      out.applied_seq[k] = t.no_command ? drivers::kNoCommandSeq : seq_of_tag_[t.applied_tag];
     }
     return drivers::IoStatus::kOk;
   }
   drivers::IoStatus write(const drivers::Command& cmd) override {
     namespace can = drivers::can;
+    seq_of_tag_[counter_] = cmd.seq;
     for (int g = 0; g * can::kFdJointsPerFrame < bank_.joints(); ++g) {
       can::FdCommandGroup grp{};
       grp.group = g;
@@ -272,41 +314,48 @@ class BusModelDriver final : public drivers::Driver {
       for (int k = 0; k < back.count; ++k) {
         const can::FdJointCommand& c = back.joint[static_cast<std::size_t>(k)];
         bank_.latch(g * can::kFdJointsPerFrame + k, c.tau, c.beta_ref, c.beta_dot_ref, true, c.kp,
-                    c.kd, back.torque_off, now_);
+                    c.kd, back.torque_off, back.counter, now_ + delay_ns_);
       }
     }
-    if (!delay_) bank_.on_sync(++counter_, now_);  // same instant: apply now
     return drivers::IoStatus::kOk;
   }
   void safe_stop() override {
-    for (int j = 0; j < bank_.joints(); ++j) bank_.latch(j, 0, 0, 0, true, 0, 0, true, now_);
+    for (int j = 0; j < bank_.joints(); ++j) bank_.latch(j, 0, 0, 0, true, 0, 0, true, counter_, now_);
   }
   const drivers::DriverCounters& counters() const override { return counters_; }
+  const drivers::ModuleClock& clock(int j) const { return clocks_[static_cast<std::size_t>(j)]; }
+  const drivers::ModuleBank& bank() const { return bank_; }
 
  private:
-  static drivers::EmulatorConfig config(int joints) {
+  static drivers::EmulatorConfig config(int joints, double drift_ppm) {
     drivers::EmulatorConfig c;
     c.joints = joints;
     c.fd = true;
+    drivers::spread_module_clocks(c, drift_ppm, 11);
     return c;
   }
   vrobot::SimulationPlant& plant_;
-  bool delay_;
+  std::int64_t delay_ns_;
+  bool report_timing_;
   drivers::ModuleBank bank_;
   drivers::DriverCounters counters_{};
+  std::array<drivers::ModuleClock, drivers::kMaxJoints> clocks_{};
+  std::array<std::uint64_t, 256> seq_of_tag_{};
   std::uint8_t counter_ = 0;
   std::uint64_t seq_ = 0;
   std::int64_t now_ = 0;
 };
 
-// The runtime (lockstep loop clock) against the bus model: deterministic.
-inline WalkResult walk_bus_model(WalkSetup s, const model::Scene& scene, bool delay) {
+// The runtime (lockstep loop clock) against the bus model: deterministic. delay: the command
+// transport delay as a fraction of the period (0: applied at the sample instant).
+inline WalkResult walk_bus_model(WalkSetup s, const model::Scene& scene, double delay,
+                                 bool report_timing = true) {
   s.lockstep = true;
   if (s.transport == Transport::kSim) s.transport = Transport::kCanFd;
   vrobot::PlantOptions po;
   po.record_capacity = static_cast<std::size_t>(s.duration * 100 * 2) + 1000;
   vrobot::SimulationPlant plant(scene, po);
-  BusModelDriver drv(plant, delay);
+  BusModelDriver drv(plant, std::llround(delay * 1e9 / s.rate_hz), 40.0, report_timing);
   WalkResult r;
   r.daemon = app::run_daemon(daemon_config(s, scene), quiet(&drv));
   r.plant = plant.progress();

@@ -161,6 +161,7 @@ std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg
   if (op.robot.K.empty())  // one stiffness per joint, explicitly
     op.robot.K.assign(static_cast<std::size_t>(op.robot.N - 1), op.robot.K_all);
   op.period = 1.0 / cfg.runtime.rt.rate_hz;
+  op.missing_cycles = cfg.observer_missing_cycles;
   if (cfg.driver.kind == config::DriverKind::kSim) {
     const model::Scene& sc = cfg.driver.scene;
     if (sc.ground_on) op.ground = sc.ground;  // nominal terrain of the onboard body model
@@ -217,7 +218,8 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
       << ", k_c = " << cfg.controller.admittance.k_c << ", observer "
       << (observer ? "on" : "off") << ", telemetry "
       << (res.telemetry_active ? "DDS domain " + std::to_string(cfg.telemetry.domain_id) + " on " + cfg.telemetry.interface : std::string("off"))
-      << "\n" << std::flush;
+      << "\n";
+  out << "timeouts: " << cfg.timing_note << "\n" << std::flush;
 
   runtime::ConsumerConfig cc;
   cc.log_file = cfg.log_file;

@@ -32,7 +32,7 @@ bash tools/scripts/fuzz.sh 10
 
 step "[4/4] real SocketCAN: ctest -L vcan inside the qemu VM (vcan0)"
 set +e
-bash tools/scripts/vm/test-vcan.sh build/release
+VM_TIMEOUT=${VM_TIMEOUT:-900} bash tools/scripts/vm/test-vcan.sh build/release
 rc=$?
 set -e
 if [ "$rc" -eq 77 ]; then

@@ -14,6 +14,7 @@
 #include <CLI/CLI.hpp>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -24,6 +25,7 @@
 #include <vector>
 
 #include "pedalwave/config/scene.hpp"
+#include "pedalwave/model/integrators.hpp"
 #include "pedalwave/vrobot/virtual_robot.hpp"
 
 namespace {
@@ -46,8 +48,12 @@ int main(int argc, char** argv) {
                "modules would (drivers/PROTOCOL.md), on a CAN interface or a pseudo-terminal"};
   std::string scene_path, can_if, link;
   bool fd = false, pty = false;
-  double latency_ms = 0.0, loss = 0.0, bit_error = 0.0, timeout_ms = 50.0, duration = 0.0,
+  double latency_ms = 0.0, loss = 0.0, bit_error = 0.0, timeout_ms = 100.0, duration = 0.0,
          status_every = 0.0, max_gap = 1.0;
+  // The bus the modules sit on (wire times) and their clocks.
+  double bitrate = 1e6, data_bitrate = 5e6, return_delay_us = 20.0, drift_ppm = 30.0;
+  int baud = 4'000'000, priority = 70, cpu = -1;
+  bool no_wire = false;
   std::vector<int> silent;
   std::vector<std::string> counter_faults;
   std::uint64_t onset = 1;
@@ -84,6 +90,22 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--status", status_every, "print a progress line every this many seconds (0 = off)")
       ->check(CLI::NonNegativeNumber)->capture_default_str();
+  app.add_option("--bitrate", bitrate, "CAN nominal bit rate, for the frames' wire time [bit/s]")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--data-bitrate", data_bitrate, "CAN FD data-phase bit rate [bit/s]")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--baud", baud, "serial baud rate, for the packets' wire time [bit/s]")
+      ->check(CLI::Range(9600, 12'000'000))->capture_default_str();
+  app.add_option("--return-delay", return_delay_us, "serial: each module's return delay [µs]")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  app.add_flag("--no-wire", no_wire, "frames take no wire time (answers as fast as the host reads)");
+  app.add_option("--clock-drift", drift_ppm, "module clocks' rate errors, spread over ±this [ppm]")
+      ->check(CLI::Range(0.0, 1000.0))->capture_default_str();
+  app.add_option("--priority", priority, "SCHED_FIFO priority of the modules' thread (0 = normal "
+                 "scheduling; real modules are separate microcontrollers: they never wait for the "
+                 "host's CPU)")->check(CLI::Range(0, 99))->capture_default_str();
+  app.add_option("--cpu", cpu, "pin the modules' thread to this CPU (−1 = no pinning)")
+      ->check(CLI::Range(-1, 1023))->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -100,12 +122,20 @@ int main(int argc, char** argv) {
     return bad_input(e.what());
   }
   if (h > 0) scene.integrator.h = h;
+  else if (!pedalwave::model::is_adaptive(scene.integrator.method))
+    scene.integrator.h = std::min(scene.integrator.h, 1.25e-4);  // VirtualRobotOptions::max_step
   const int joints = scene.robot.N - 1;
 
   vr::VirtualRobotOptions opt;
   opt.bus = pty ? vr::Bus::kSerial : vr::Bus::kCan;
   opt.emulator.fd = fd;
   opt.emulator.command_timeout_ns = static_cast<std::int64_t>(timeout_ms * 1e6);
+  opt.emulator.bus = {!no_wire, bitrate, data_bitrate, baud, return_delay_us * 1e-6};
+  opt.emulator.joints = joints;
+  pd::spread_module_clocks(opt.emulator, drift_ppm, seed);
+  opt.thread_priority = priority;
+  opt.thread_cpu = cpu;
+  opt.max_step = h > 0 ? h : 1.25e-4;
   pd::FaultConfig& f = opt.emulator.faults;
   f.reply_latency_ns = static_cast<std::int64_t>(latency_ms * 1e6);
   f.frame_loss = loss;
@@ -169,12 +199,19 @@ int main(int argc, char** argv) {
               pty ? "serial, DYNAMIXEL 2.0" : (fd ? "CAN FD" : "classic CAN"), scene.integrator.h);
   if (pty) std::printf("pty: %s%s%s\n", p.slave_path.c_str(), link.empty() ? "" : " (link ", link.empty() ? "" : (link + ")").c_str());
   else std::printf("can: %s\n", can_if.c_str());
+  if (no_wire) std::printf("bus: no wire time (answers as fast as the host reads)\n");
+  else if (pty) std::printf("bus: %d baud, return delay %g µs, wire time modeled\n", baud, return_delay_us);
+  else std::printf("bus: %g Mbit/s%s, wire time modeled\n", bitrate / 1e6,
+                   fd ? (", data phase " + std::to_string(data_bitrate / 1e6).substr(0, 4) + " Mbit/s").c_str() : "");
+  std::printf("module clocks: free-running µs counters, rate errors spread over ±%g ppm; command "
+              "lifetime %g ms\n", drift_ppm, timeout_ms);
   std::printf("waiting for the host's SYNC; Ctrl-C to stop\n");
   std::fflush(stdout);
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   robot->start();
+  if (!robot->thread_note().empty()) std::printf("%s\n", robot->thread_note().c_str());
   const auto t0 = std::chrono::steady_clock::now();
   auto next_status = t0 + std::chrono::duration<double>(status_every);
   while (g_signal.load() == 0) {

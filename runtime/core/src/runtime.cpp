@@ -127,6 +127,7 @@ Runtime::Runtime(const RuntimeConfig& cfg, drivers::Driver& driver, Controller& 
   fb_.joints = joints_;
   cmd_.joints = joints_;
   cmd_.torque_off = true;  // "last command" the observer sees before the first write
+  history_[0] = cmd_;
   clock_ = LoopClock(cfg_.clock, cfg_.lockstep_start_ns);  // event stamps before run()
   set_mode(Mode::kConfigured, "configured");
 }
@@ -334,7 +335,10 @@ bool Runtime::cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std:
 
   // ---- 2. observe ----
   Verdict ov;
-  if (observer_) ov = observer_->observe(fb_, cmd_, t, dt, sample_);
+  if (observer_) {
+    const drivers::CommandHistory cmds(history_.data(), kCommandHistory, newest_written_);
+    ov = observer_->observe(fb_, cmds, t, dt, sample_);
+  }
   const std::int64_t t_obs = clock_.now();
   if (ov.fault != FaultClass::kNone) ov.flags |= bit(ov.fault);
 
@@ -410,6 +414,8 @@ bool Runtime::cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std:
 
   // ---- 4. write ----
   driver_.write(cmd_);
+  history_[static_cast<std::size_t>(seq_ % kCommandHistory)] = cmd_;
+  newest_written_ = seq_;
   const std::int64_t t_wr = clock_.now();
   sample_.t_write_ns = static_cast<std::int32_t>(t_wr - t_ctl);
   metrics_.write.record(t_wr - t_ctl);

@@ -13,6 +13,7 @@
 namespace pedalwave::observer {
 
 using drivers::Command;
+using drivers::CommandHistory;
 using drivers::Feedback;
 
 namespace {
@@ -45,6 +46,8 @@ struct FaultObserver::Joint {
   // Previous valid sample
   bool prev_valid = false;
   double beta = 0, beta_dot = 0, defl = 0;
+  std::int64_t sample_ns = 0;                      // its module sample time [ns] (kModule)
+  std::uint64_t applied_seq = drivers::kNoCommandSeq;  // the command in effect from it on
   // Residual regressors filtered like r: [u, K·deflection, β̇, 1]
   std::array<double, 4> phi{};
   // Classification window
@@ -151,6 +154,7 @@ void FaultObserver::reset() {
   body_.fill(0.0);
   speed_ = 0.0;
   elapsed_ = 0.0;
+  intervals_skipped_ = 0;
   have_prev_frame_ = false;
   prev_seq_ = 0;
   frame_stale_hist_ = 0;
@@ -239,10 +243,34 @@ bool FaultObserver::check_joint(const Feedback& fb, int j, double t) {
   return true;
 }
 
-void FaultObserver::residual_step(const Feedback& fb, const Command& cmd, int j, double dt,
-                                  double t) {
+namespace {
+
+// ∫u dt over a piece [0, L] of an interval during which module command c acted, from the motor
+// state (β, β̇) at the piece's ends: the module law u = c0 − k_p β − k_d β̇ with
+// c0 = τ + k_p β_ref + k_d β̇_ref (drivers/io.hpp); the k_d term is exact, the k_p term
+// trapezoidal; with a torque limit the clamped law is integrated trapezoidally.
+double law_integral(const Command& c, std::size_t k, double L, double ba, double bda, double bb,
+                    double bdb, double u_max) noexcept {
+  if (c.torque_off || L <= 0) return 0.0;
+  const double c0 = c.tau[k] + c.kp[k] * c.beta_ref[k] + c.kd[k] * c.beta_dot_ref[k];
+  const double u0 = c0 - c.kp[k] * ba - c.kd[k] * bda;
+  const double u1 = c0 - c.kp[k] * bb - c.kd[k] * bdb;
+  if (u_max > 0 && (std::abs(u0) >= u_max || std::abs(u1) >= u_max))
+    return 0.5 * L * (std::clamp(u0, -u_max, u_max) + std::clamp(u1, -u_max, u_max));
+  return L * c0 - c.kp[k] * L * 0.5 * (ba + bb) - c.kd[k] * (bb - ba);
+}
+
+double law_offset(const Command& c, std::size_t k) noexcept {
+  return c.torque_off ? 0.0 : c.tau[k] + c.kp[k] * c.beta_ref[k] + c.kd[k] * c.beta_dot_ref[k];
+}
+
+}  // namespace
+
+void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j, double t) {
   const auto k = static_cast<std::size_t>(j);
   Joint& s = jt_[k];
+  const double dt = iv.dt;
+  const Command& cmd = iv.c1 ? *iv.c1 : *iv.c0;  // the newest command of the interval
   const double b1 = fb.beta[k], bd1 = fb.beta_dot[k], d1 = fb.deflection[k];
   const double b0 = s.beta, bd0 = s.beta_dot, d0 = s.defl;
   const double K = K_[k];
@@ -251,13 +279,25 @@ void FaultObserver::residual_step(const Feedback& fb, const Command& cmd, int j,
   // ---- Kinematic consistency of the encoder: c = Δβ − T (β̇_0 + β̇_1)/2 ----
   const double c = (b1 - b0) - 0.5 * dt * (bd0 + bd1);
   c_[k] = c;
-  // A step in the commanded rate (start, hold, resume) moves the motor within ~J/k_d, faster
-  // than the trapezoid follows: no consistency verdicts for a few cycles.
-  if (std::abs(cmd.beta_dot_ref[k] - s.prev_ref_rate) > p_.command_step || cmd.torque_off)
-    s.cmd_settle = p_.command_settle;
-  // After an overrun the gap spans skipped periods: the trapezoid is no longer exact over it and
-  // the module's set-points moved meanwhile — pause the verdicts as for a command step.
-  if (dt > 1.5 * p_.period) s.cmd_settle = p_.command_settle;
+  if (iv.nominal) {
+    // A step in the commanded rate (start, hold, resume) moves the motor within ~J/k_d, faster
+    // than the trapezoid follows: no consistency verdicts for a few cycles.
+    if (std::abs(cmd.beta_dot_ref[k] - s.prev_ref_rate) > p_.command_step || cmd.torque_off)
+      s.cmd_settle = p_.command_settle;
+    // After an overrun the gap spans skipped periods: the trapezoid is no longer exact over it and
+    // the module's set-points moved meanwhile — pause the verdicts as for a command step.
+    if (dt > 1.5 * p_.period) s.cmd_settle = p_.command_settle;
+  } else {
+    // Measured timing: the trapezoid's error over this interval is the module PD's fast response
+    // to the command change inside it: β̇ moves by ≈ Δc0 / max(k_d, J/dt) within ~J/k_d, so
+    // |error| ≲ dt/2 · |Δc0| / max(k_d, J/dt). Verdicts pause only while that bound exceeds a
+    // quarter of the threshold (a start, hold or resume; a command after many skipped periods).
+    const double dc0 = iv.c1 ? std::abs(law_offset(*iv.c1, k) - law_offset(*iv.c0, k)) : 0.0;
+    const double stiff = std::max(cmd.kd[k], J_ / dt);
+    const bool off_step = iv.c1 && iv.c1->torque_off != iv.c0->torque_off;
+    if (off_step || 0.5 * dt * dc0 / stiff > 0.25 * p_.consistency_threshold)
+      s.cmd_settle = p_.command_settle;
+  }
   s.prev_ref_rate = cmd.beta_dot_ref[k];
   const bool settled = elapsed_ >= p_.settle;
   if (s.cmd_settle > 0) {
@@ -311,16 +351,20 @@ void FaultObserver::residual_step(const Feedback& fb, const Command& cmd, int j,
     latch(FaultClass::kDeflectionStuck, j, t, s.beta_max - s.beta_min, p_.hold_motion, d1);
 
   // ---- Momentum residual (file comment of the header) ----
+  // ∫u dt: one piece with the command in effect since the previous sample, or two when the module
+  // applied a new command inside the interval (at tau1); β, β̇ at the split from the cubic Hermite
+  // interpolant of the two samples (the k_d term then telescopes: exact whatever the split).
   double Iu = 0.0;  // ∫u dt [N·m·s]
-  if (!cmd.torque_off) {
-    const double c0 = cmd.tau[k] + cmd.kp[k] * cmd.beta_ref[k] + cmd.kd[k] * cmd.beta_dot_ref[k];
-    const double u0 = c0 - cmd.kp[k] * b0 - cmd.kd[k] * bd0;
-    const double u1 = c0 - cmd.kp[k] * b1 - cmd.kd[k] * bd1;
-    if (p_.u_max > 0 && (std::abs(u0) >= p_.u_max || std::abs(u1) >= p_.u_max)) {
-      Iu = 0.5 * dt * (std::clamp(u0, -p_.u_max, p_.u_max) + std::clamp(u1, -p_.u_max, p_.u_max));
-    } else {
-      Iu = dt * c0 - cmd.kp[k] * dt * 0.5 * (b0 + b1) - cmd.kd[k] * (b1 - b0);
-    }
+  if (!iv.c1) {
+    Iu = law_integral(*iv.c0, k, dt, b0, bd0, b1, bd1, p_.u_max);
+  } else {
+    const double u = iv.tau1 / dt, u2 = u * u, u3 = u2 * u;
+    const double bm = (2 * u3 - 3 * u2 + 1) * b0 + (u3 - 2 * u2 + u) * dt * bd0 +
+                      (-2 * u3 + 3 * u2) * b1 + (u3 - u2) * dt * bd1;
+    const double bdm = (6 * u2 - 6 * u) / dt * b0 + (3 * u2 - 4 * u + 1) * bd0 +
+                       (-6 * u2 + 6 * u) / dt * b1 + (3 * u2 - 2 * u) * bd1;
+    Iu = law_integral(*iv.c0, k, iv.tau1, b0, bd0, bm, bdm, p_.u_max) +
+         law_integral(*iv.c1, k, dt - iv.tau1, bm, bdm, b1, bd1, p_.u_max);
   }
   const double Is = dt * K * 0.5 * (d0 + d1);              // ∫K·deflection dt
   const double Ib = p_.motor_viscous * (b1 - b0);          // ∫b_m β̇ dt
@@ -349,18 +393,18 @@ void FaultObserver::residual_step(const Feedback& fb, const Command& cmd, int j,
       s.classifying = true;
       s.t0 = t;
       s.n = s.above = 0;
-      s.peak = 0.0;
+      s.peak = std::abs(r);  // the evidence starts with the crossing: value ≥ threshold
       s.G.setZero();
       s.g.setZero();
     }
     return;
   }
+  s.peak = std::max(s.peak, std::abs(r));
   if (t - s.t0 < p_.t_transient) return;  // r and φ still in the onset transient (3/K_O)
   s.G.noalias() += phi * phi.transpose();
   s.g += phi * r;
   ++s.n;
   if (std::abs(r) > 0.5 * p_.r_threshold) ++s.above;
-  s.peak = std::max(s.peak, std::abs(r));
   if (t - s.t0 >= p_.t_transient + p_.t_classify) classify(j, t);
 }
 
@@ -406,8 +450,40 @@ void FaultObserver::classify(int j, double t) {
   }
 }
 
-int FaultObserver::observe(const Feedback& fb, const Command& last_cmd, double t, double dt) {
+// The interval from joint j's previous valid sample to this one: its length and the commands that
+// acted over it. false = it cannot be integrated exactly (timing record missing, the command no
+// longer kept, two commands applied inside it): the residual skips it.
+bool FaultObserver::make_interval(const Feedback& fb, const CommandHistory& cmds, int j, double dt,
+                                  Interval& iv) {
+  const auto k = static_cast<std::size_t>(j);
+  const Joint& s = jt_[k];
+  if (fb.timing == drivers::FeedbackTiming::kNominal) {
+    iv = Interval{dt, &cmds.last(), nullptr, 0.0, true};
+    return true;
+  }
+  const std::int64_t t1 = fb.sample_ns[k];
+  if (t1 == 0 || s.sample_ns == 0 || t1 <= s.sample_ns) return false;
+  iv.nominal = false;
+  iv.dt = static_cast<double>(t1 - s.sample_ns) * 1e-9;
+  iv.c0 = cmds.find(s.applied_seq);
+  iv.c1 = nullptr;
+  iv.tau1 = 0.0;
+  if (iv.c0 == nullptr) return false;
+  const std::uint64_t a = fb.applied_seq[k];
+  if (a == s.applied_seq) return true;
+  // One new command inside the interval (the host writes one per cycle, the modules sample once
+  // per SYNC); two or more (a late command overtaken by the next) cannot be split exactly.
+  if (a != drivers::kNoCommandSeq && s.applied_seq != drivers::kNoCommandSeq && a != s.applied_seq + 1)
+    return false;
+  iv.c1 = cmds.find(a);
+  if (iv.c1 == nullptr) return false;
+  iv.tau1 = std::clamp(static_cast<double>(fb.applied_ns[k] - s.sample_ns) * 1e-9, 0.0, iv.dt);
+  return true;
+}
+
+int FaultObserver::observe(const Feedback& fb, const CommandHistory& cmds, double t, double dt) {
   if (!std::isfinite(dt) || dt <= 0) dt = p_.period;
+  const bool module_timing = fb.timing == drivers::FeedbackTiming::kModule;
   elapsed_ += dt;
   check_frame(fb, t);
   const int J = std::min(joints_, fb.joints);
@@ -421,6 +497,9 @@ int FaultObserver::observe(const Feedback& fb, const Command& last_cmd, double t
       if (frame_ok_) s.prev_valid = false;  // a repeated frame keeps the previous sample
       continue;
     }
+    // The command in effect at this sample (kModule: the one the module says it applied).
+    const Command* applied = module_timing ? cmds.find(fb.applied_seq[k]) : &cmds.last();
+    const Command& last_cmd = applied ? *applied : cmds.last();
     // Persistent saturation: the module law's demand beyond ±u_max (or the module says so).
     const double u_demand = last_cmd.torque_off
                                 ? 0.0
@@ -431,7 +510,11 @@ int FaultObserver::observe(const Feedback& fb, const Command& last_cmd, double t
     sat_lp_[k] += (1.0 - std::exp(-dt / p_.saturation_tau)) * ((sat ? 1.0 : 0.0) - sat_lp_[k]);
     if (sat_lp_[k] > p_.saturation_fraction && elapsed_ >= p_.settle)
       latch(FaultClass::kSaturation, j, t, sat_lp_[k], p_.saturation_fraction, u_demand);
-    if (s.prev_valid) residual_step(fb, last_cmd, j, dt, t);
+    Interval iv;
+    if (s.prev_valid && make_interval(fb, cmds, j, dt, iv)) residual_step(fb, iv, j, t);
+    else if (s.prev_valid) ++intervals_skipped_;
+    s.sample_ns = module_timing ? fb.sample_ns[k] : 0;
+    s.applied_seq = fb.applied_seq[k];
     // Link-side filters on α = β − deflection and β̇.
     const double alpha = fb.beta[k] - fb.deflection[k];
     const double w = 2.0 * std::numbers::pi * p_.accel_filter_hz;

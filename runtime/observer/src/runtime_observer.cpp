@@ -3,9 +3,9 @@
 namespace pedalwave::observer {
 
 runtime::Verdict RuntimeObserver::observe(const drivers::Feedback& fb,
-                                          const drivers::Command& last_cmd, double t, double dt,
+                                          const drivers::CommandHistory& cmds, double t, double dt,
                                           runtime::CycleSample& sample) {
-  core_.observe(fb, last_cmd, t, dt);
+  core_.observe(fb, cmds, t, dt);
   const int J = core_.joints();
   for (int j = 0; j < J; ++j) {
     const auto k = static_cast<std::size_t>(j);

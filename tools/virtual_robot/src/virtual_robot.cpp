@@ -11,10 +11,14 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <pthread.h>
+#include <sched.h>
 #include <sstream>
 #include <system_error>
 
 #include "pedalwave/drivers/can_protocol.hpp"
+#include "pedalwave/model/integrators.hpp"
 #include "pedalwave/drivers/socketcan_driver.hpp"
 
 namespace pedalwave::vrobot {
@@ -22,7 +26,10 @@ namespace pedalwave::vrobot {
 VirtualRobot::VirtualRobot(const model::Scene& scene, int fd, const VirtualRobotOptions& opt)
     : opt_(opt), fd_(fd) {
   try {
-    plant_ = std::make_unique<SimulationPlant>(scene, opt_.plant);
+    model::Scene sc = scene;
+    if (opt_.max_step > 0 && !model::is_adaptive(sc.integrator.method) && sc.integrator.h > opt_.max_step)
+      sc.integrator.h = opt_.max_step;
+    plant_ = std::make_unique<SimulationPlant>(sc, opt_.plant);
     opt_.emulator.joints = plant_->joints();
     if (opt_.bus == Bus::kCan)
       can_ = std::make_unique<drivers::CanModuleEmulator>(fd_, opt_.emulator, *plant_);
@@ -46,6 +53,25 @@ void VirtualRobot::start() {
     if (can_) can_->run(stop_);
     else serial_->run(stop_);
   });
+  // Real modules are microcontrollers of their own: give the emulating thread the CPU it needs.
+  thread_note_.clear();
+  if (opt_.thread_priority > 0) {
+    sched_param sp{};
+    sp.sched_priority = opt_.thread_priority;
+    const int e = ::pthread_setschedparam(thread_.native_handle(), SCHED_FIFO, &sp);
+    thread_note_ = e == 0 ? "modules' thread: SCHED_FIFO " + std::to_string(opt_.thread_priority)
+                          : std::string("modules' thread: SCHED_FIFO refused (") + std::strerror(e) +
+                                "): normal scheduling; under CPU load replies may come late";
+  }
+  if (opt_.thread_cpu >= 0) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(opt_.thread_cpu, &set);
+    const int e = ::pthread_setaffinity_np(thread_.native_handle(), sizeof set, &set);
+    thread_note_ += (thread_note_.empty() ? "" : "; ") +
+                    (e == 0 ? "pinned to CPU " + std::to_string(opt_.thread_cpu)
+                            : std::string("pinning refused (") + std::strerror(e) + ")");
+  }
 }
 
 void VirtualRobot::stop() {

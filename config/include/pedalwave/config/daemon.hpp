@@ -53,6 +53,10 @@ struct DaemonConfig {
   control::GaitControllerParams controller;
   DriverSelection driver;
   bool observer = true;
+  int observer_missing_cycles = 3;    // consecutive missing replies → module_silent [-] (derived)
+  // How the loop's timeouts were chosen (given or derived from the rate and the bus), for the
+  // start report: read deadline, stale_timeout, module-silent window.
+  std::string timing_note;
   TelemetrySection telemetry;
   std::string log_file;               // events log; empty = stderr
 };

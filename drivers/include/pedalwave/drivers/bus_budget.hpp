@@ -12,8 +12,8 @@
 //                       (⌈(4 + CRC)/4⌉)
 //   time = nominal bits / bitrate + data bits / data_bitrate
 // Per cycle the CAN frame set is (PROTOCOL.md §2): 1 SYNC (2 bytes, classic) + J feedback frames
-// (8 bytes; FD frames with BRS on an FD bus) + commands: classic J command frames + 1 gains frame;
-// FD ⌈J/6⌉ command-group frames.
+// (classic: 8 bytes + J timing frames of 8 bytes; FD: 16-byte frames with BRS carrying the timing
+// record) + commands: classic J command frames + 1 gains frame; FD ⌈J/6⌉ command-group frames.
 // Serial (DYNAMIXEL 2.0, 8N1 = 10 bits per byte): sync-counter Write (13 bytes) + Sync Read
 // (14 + J) + J status packets (worst-case stuffing) + Sync Write (worst-case stuffing), plus J
 // module return delays and one host turnaround per exchange.
@@ -70,5 +70,10 @@ struct SerialBusSpec {
 int serial_bytes_per_cycle(int joints) noexcept;
 BusBudget serial_bus_budget(const SerialBusSpec& spec) noexcept;
 BusBudget check_serial_bus_budget(const SerialBusSpec& spec);
+
+// Time from the start of the SYNC to the end of the last module's answer on an idle bus, worst
+// case [s]: the least a read deadline must leave (the runtime's read_budget · period).
+double can_reply_window_s(const CanBusSpec& spec) noexcept;
+double serial_reply_window_s(const SerialBusSpec& spec) noexcept;
 
 }  // namespace pedalwave::drivers

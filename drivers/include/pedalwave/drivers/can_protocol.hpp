@@ -1,14 +1,17 @@
 // Codec of the pedalwave CAN module protocol (drivers/PROTOCOL.md §2): a SYNC-driven cycle in the
-// CANopen manner. Per cycle the host sends SYNC (rolling counter c), every module answers with one
-// feedback frame echoing c, then the host sends the commands (tagged with c), which the modules
-// apply at the next SYNC (torque-off: at once).
+// CANopen manner. Per cycle the host sends SYNC (rolling counter c); every module samples when the
+// SYNC arrives and answers with its feedback and its timing record (the sample time by its own
+// clock, the command it applied last and when) echoing c; then the host sends the commands
+// (tagged with c), which the modules apply as they arrive.
 //
-//   id            frame                 dlc  content
-//   0x080         SYNC                  2    counter c (8 bit), CRC-8
-//   0x180 + node  feedback (module→host) 8    β, β̇, deflection (int16), status|c mod 16, CRC-8
-//   0x200 + node  command (classic)     8    τ, β_ref, β̇_ref (int16), flags|c mod 16, CRC-8
-//   0x280 + g     command group (FD)    ≤64  6 joints × {τ, β_ref, β̇_ref, kp, kd}, c, CRC-16
-//   0x300 + node  gains (classic)       8    kp, kd (uint16), c mod 16, CRC-8
+//   id            frame                   dlc  content
+//   0x080         SYNC                    2    counter c (8 bit), CRC-8
+//   0x180 + node  feedback (module→host)  8    β, β̇, deflection (int16), status|c mod 16, CRC-8
+//                 feedback (FD bus)       16   the same + applied tag, sample time, age, CRC-16
+//   0x200 + node  command (classic)       8    τ, β_ref, β̇_ref (int16), flags|c mod 16, CRC-8
+//   0x280 + g     command group (FD)      ≤64  6 joints × {τ, β_ref, β̇_ref, kp, kd}, c, CRC-16
+//   0x300 + node  gains (classic)         8    kp, kd (uint16), c mod 16, CRC-8
+//   0x380 + node  timing (classic bus)    8    sample time u32 µs, age u16, c|tag mod 16, CRC-8
 // node = joint index + 1 (1…63); FD group g covers joints 6g … 6g+5.
 //
 // Every function is pure (no I/O), allocation-free and noexcept; each returns a CodecStatus.
@@ -21,6 +24,7 @@
 #include <cstdint>
 
 #include "pedalwave/drivers/io.hpp"
+#include "pedalwave/drivers/wire.hpp"
 
 namespace pedalwave::drivers::can {
 
@@ -29,6 +33,8 @@ inline constexpr canid_t kFeedbackBase = 0x180;   // + node
 inline constexpr canid_t kCommandBase = 0x200;    // + node
 inline constexpr canid_t kFdCommandBase = 0x280;  // + group
 inline constexpr canid_t kGainsBase = 0x300;      // + node
+inline constexpr canid_t kTimingBase = 0x380;     // + node (classic bus)
+inline constexpr std::uint8_t kFdFeedbackLen = 16; // FD feedback frame payload [bytes]
 inline constexpr int kMaxNode = kMaxJoints;       // nodes 1…63
 inline constexpr int kFdJointsPerFrame = 6;       // joints per CAN FD command frame
 inline constexpr int kFdJointBytes = 10;          // bytes per joint in an FD command frame
@@ -105,6 +111,21 @@ CodecStatus decode_sync(const can_frame& in, std::uint8_t& counter) noexcept;
 CodecStatus encode_feedback(int node, const ModuleFeedback& fb, can_frame& out) noexcept;
 // Decoder: node from the id; on kChecksum, `node` still holds the node named by the id.
 CodecStatus decode_feedback(const can_frame& in, int& node, ModuleFeedback& fb) noexcept;
+
+// Timing record of `node` on a classic bus (0x380 + node): [0-3] sample time, [4-5] age,
+// [6] bits 0-3 c mod 16 (the SYNC it answers), bits 4-7 applied tag mod 16, [7] CRC-8.
+CodecStatus encode_timing(int node, const wire::ModuleTiming& t, std::uint8_t counter,
+                          can_frame& out) noexcept;
+CodecStatus decode_timing(const can_frame& in, int& node, wire::ModuleTiming& t,
+                          std::uint8_t& counter) noexcept;
+
+// Feedback of `node` on an FD bus (0x180 + node, 16 bytes, BRS): [0-6] as the classic feedback,
+// [7] applied tag (8 bit), [8-11] sample time, [12-13] age, [14-15] CRC-16 over id + [0-13].
+CodecStatus encode_feedback_fd(int node, const ModuleFeedback& fb, const wire::ModuleTiming& t,
+                               canfd_frame& out) noexcept;
+// On kChecksum, `node` still holds the node named by the id. kWrongLength for any other length.
+CodecStatus decode_feedback_fd(const canfd_frame& in, int& node, ModuleFeedback& fb,
+                               wire::ModuleTiming& t) noexcept;
 
 // Classic command of `node`. A NaN/Inf value encodes torque-off (and returns kNotFinite).
 CodecStatus encode_command(int node, const JointCommand& cmd, can_frame& out) noexcept;

@@ -15,6 +15,7 @@
 #include <span>
 
 #include "pedalwave/drivers/io.hpp"
+#include "pedalwave/drivers/wire.hpp"
 
 namespace pedalwave::drivers::dxl {
 
@@ -56,8 +57,10 @@ inline constexpr std::uint16_t kModelNumber = 0x5057;
 // kp u16 [1e-2 N·m/rad], kd u16 [1e-3 N·m·s/rad], flags u8 (bit 0 torque off), counter u8 (c).
 inline constexpr std::size_t kCommandBlockSize = 12;
 // Feedback block offsets: β i16 [1e-4 rad], β̇ i16 [1e-3 rad/s], deflection i16 [2e-5 rad],
-// status u8 (bit 0 saturated, 1 over-temp, 2 encoder fault, 3 torque off), echo u8 (last c).
-inline constexpr std::size_t kFeedbackBlockSize = 8;
+// status u8 (bit 0 saturated, 1 over-temp, 2 encoder fault, 3 torque off), echo u8 (last c),
+// then the timing record (wire::ModuleTiming): sample time u32 [µs, module clock], application
+// age u16 [µs] (bit 15: no command), applied command counter u8 (its c).
+inline constexpr std::size_t kFeedbackBlockSize = 15;
 
 // ---- Results --------------------------------------------------------------------------------------
 enum class DxlStatus : std::uint8_t {
@@ -124,12 +127,13 @@ struct FeedbackBlock {
   double deflection = 0.0;    // spring deflection β − α [rad]
   std::uint16_t status = 0;   // module StatusBits [-]
   std::uint8_t echo = 0;      // last sync counter c the module latched [-]
+  wire::ModuleTiming timing{};  // when it sampled, which command it applied last and when
 };
 // Encoders return wire::QuantFlag bits (0 = exact range). A NaN command encodes torque-off.
 std::uint8_t encode_command_block(const CommandBlock& c, std::uint8_t* out12) noexcept;
 void decode_command_block(const std::uint8_t* in12, CommandBlock& c) noexcept;
-std::uint8_t encode_feedback_block(const FeedbackBlock& f, std::uint8_t* out8) noexcept;
-void decode_feedback_block(const std::uint8_t* in8, FeedbackBlock& f) noexcept;
+std::uint8_t encode_feedback_block(const FeedbackBlock& f, std::uint8_t* out15) noexcept;
+void decode_feedback_block(const std::uint8_t* in15, FeedbackBlock& f) noexcept;
 
 // Worst-case size of a packet whose unstuffed instruction+error+parameter region has n bytes:
 // header 7 + n + ⌊n/3⌋ stuffing + CRC 2.

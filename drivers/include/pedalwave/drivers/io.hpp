@@ -23,7 +23,22 @@ enum StatusBit : std::uint16_t {
   kStatusEncoderFault = 1u << 6,  // module's own encoder diagnostics
   kStatusBusError = 1u << 7,      // bus-level error (bus-off, error-passive) affecting the joint
   kStatusTorqueOff = 1u << 8,     // module's output stage is disabled (safe torque off)
+  kStatusLate = 1u << 9,          // the answer came after the read deadline, or an answer to an
+                                  // older SYNC arrived: timing, not a module fault (with Missing)
+  kStatusNoTiming = 1u << 10,     // fresh data, but the module's timing record did not arrive:
+                                  // sample_ns / applied_* of this joint are unknown this cycle
 };
+
+// How the driver knows when the modules sampled and when they applied the commands.
+enum class FeedbackTiming : std::uint8_t {
+  kNominal = 0,  // samples on the loop's deadline grid, and the command written in a cycle acts
+                 // from the next sample on, over a whole interval (the in-process plant: exact)
+  kModule,       // per joint: sample_ns, applied_seq and applied_ns from the module's own clock
+};
+
+// Command::seq of "no command": a module that was never commanded (or whose command lifetime
+// expired) applies zero torque. CommandHistory::find() maps it to an all-off command.
+inline constexpr std::uint64_t kNoCommandSeq = ~0ull;
 
 // One cycle's measurements, motor side only (model-spec.md §1): the driver never sees link angles.
 struct Feedback {
@@ -34,6 +49,16 @@ struct Feedback {
   std::array<double, kMaxJoints> beta_dot{};     // motor output rate β̇_j [rad/s], (N-1)
   std::array<double, kMaxJoints> deflection{};   // spring deflection β_j − α_j [rad], (N-1)
   std::array<std::uint16_t, kMaxJoints> status{};  // StatusBit mask per joint, (N-1)
+  // ---- Timing (PROTOCOL.md §1.1); meaningful per joint only with timing == kModule ----
+  FeedbackTiming timing = FeedbackTiming::kNominal;
+  // When module j sampled β, β̇, deflection: its clock mapped to CLOCK_MONOTONIC by the driver's
+  // clock estimate [ns], (N-1); 0 = unknown this cycle (kStatusNoTiming / missing).
+  std::array<std::int64_t, kMaxJoints> sample_ns{};
+  // The command module j applied last before its sample: Command::seq (kNoCommandSeq = output
+  // off, no command) [-], and when it applied it (same clock as sample_ns) [ns], (N-1). Between
+  // two samples the previous sample's applied command acts until applied_ns, this one after.
+  std::array<std::uint64_t, kMaxJoints> applied_seq{};
+  std::array<std::int64_t, kMaxJoints> applied_ns{};
 };
 
 // One cycle's commands. The module applies, at its own internal rate until the next command,
@@ -50,6 +75,45 @@ struct Command {
   std::array<double, kMaxJoints> kd{};           // module damping gain [N·m·s/rad], (N-1)
   bool torque_off = false;                       // safe torque off: every module output disabled
 };
+
+// The commands the host wrote recently: a non-owning view of a ring indexed by seq % capacity
+// (the runtime keeps it; Runtime::kCommandHistory entries). A single Command converts to a view of
+// itself (the in-process plant's case: the last command acted over the whole interval).
+class CommandHistory {
+ public:
+  CommandHistory(const Command& only) noexcept  // NOLINT: implicit on purpose
+      : ring_(&only), capacity_(1), newest_(only.seq) {}
+  CommandHistory(const Command* ring, int capacity, std::uint64_t newest_seq) noexcept
+      : ring_(ring), capacity_(capacity), newest_(newest_seq) {}
+  // The newest command written.
+  const Command& last() const noexcept { return ring_[newest_ % static_cast<std::uint64_t>(capacity_)]; }
+  // The command with Command::seq == seq (kNoCommandSeq: an all-off command), or nullptr if it is
+  // no longer (or not yet) in the ring.
+  const Command* find(std::uint64_t seq) const noexcept {
+    if (seq == kNoCommandSeq) return &all_off();
+    if (seq > newest_) return nullptr;
+    const Command& c = ring_[seq % static_cast<std::uint64_t>(capacity_)];
+    return c.seq == seq ? &c : nullptr;
+  }
+  static const Command& all_off() noexcept;
+
+ private:
+  const Command* ring_;
+  int capacity_;
+  std::uint64_t newest_;
+};
+
+namespace detail {
+constexpr Command make_all_off() noexcept {
+  Command c;
+  c.joints = kMaxJoints;
+  c.seq = kNoCommandSeq;
+  c.torque_off = true;
+  return c;
+}
+inline constexpr Command kAllOffCommand = make_all_off();
+}  // namespace detail
+inline const Command& CommandHistory::all_off() noexcept { return detail::kAllOffCommand; }
 
 // Result of a driver call inside the cycle: never throws, never blocks past the given deadline.
 enum class IoStatus : std::uint8_t {

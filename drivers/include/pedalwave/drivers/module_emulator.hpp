@@ -2,16 +2,24 @@
 // transport (socket-pair end or raw CAN socket) or on the far end of a serial line (pty master),
 // with configurable fault injection (drivers/PROTOCOL.md §6).
 //
-// Behaviour of every emulated module j (node / ID j+1):
-//  - On SYNC (CAN) or the broadcast sync-counter write (serial) at time t:
-//      plant.advance_to(t)          integrate with the command applied so far
+// Behaviour of every emulated module j (node / ID j+1), as on a real bus (PROTOCOL.md §1.1, §6):
+//  - Every frame occupies the bus for its wire time at the configured bit rate / baud
+//    (BusTimingConfig): a frame read at host time `now` has arrived at the modules at
+//    max(now, bus busy until) + its wire time. Answers are sent one after the other in bus order
+//    (CAN: arbitration, lower id first; serial: ID order, each after its return delay), each when
+//    its last bit would have left the wire.
+//  - On the SYNC's arrival (CAN) or the broadcast sync-counter write's (serial) at time t:
+//      plant.advance_to(t)          integrate with the commands applied so far
 //      plant.measure(fb)            sample β, β̇, deflection, module status
-//      apply latched commands       the command received since the previous SYNC takes effect
-//    then (CAN) send the feedback frames, or (serial) keep the sample for the next Sync Read.
-//  - A command frame is latched; a torque-off command takes effect at once.
+//      stamp                        the module's own clock (offset, drift) at t
+//    then (CAN) send the feedback (and, on a classic bus, the timing) frames, or (serial) keep the
+//    sample for the next Sync Read.
+//  - A command takes effect when it arrives: the plant is integrated up to the arrival with the
+//    previous command, then the new one applies; the module remembers its tag and the arrival time
+//    (by its clock) and reports both with its next sample.
 //  - Command lifetime: if no valid command frame arrived for command_timeout_ns, the module drops
-//    to safe torque (torque off, u = 0) and reports kStatusTorqueOff until a command arrives.
-//    Modules start torque-off until their first command.
+//    to safe torque (torque off, u = 0) at the next SYNC and reports kStatusTorqueOff and "no
+//    command" until a command arrives. Modules start torque-off until their first command.
 //  - Classic CAN: gains (kp, kd) come from the gains frame and stay until the next one.
 // Fault injection (from SYNC number onset_sync on): reply latency, per-frame loss probability,
 // per-frame bit-error probability (one payload bit flipped so the checksum fails), a module that
@@ -30,6 +38,7 @@
 
 #include "pedalwave/drivers/dynamixel.hpp"
 #include "pedalwave/drivers/io.hpp"
+#include "pedalwave/drivers/wire.hpp"
 
 namespace pedalwave::drivers {
 
@@ -71,12 +80,30 @@ struct FaultConfig {
   std::uint32_t seed = 1;             // random generator seed [-]
 };
 
+// The bus the modules sit on, for wire times (drivers/bus_budget.hpp's frame sizes).
+struct BusTimingConfig {
+  bool wire = true;               // frames take their wire time (false: instantaneous)
+  double bitrate = 1e6;           // CAN nominal bit rate [bit/s]
+  double data_bitrate = 5e6;      // CAN FD data-phase bit rate [bit/s]
+  int baud = 4'000'000;           // serial [bit/s], 8N1 (10 bits per byte)
+  double return_delay_s = 20e-6;  // serial: each module's status return delay [s]
+};
+
 struct EmulatorConfig {
-  int joints = 5;                                // modules, nodes/IDs 1…joints [-]
-  bool fd = false;                               // CAN: FD frame set (command groups, FD replies)
-  std::int64_t command_timeout_ns = 50'000'000;  // command lifetime [ns]
+  int joints = 5;                                 // modules, nodes/IDs 1…joints [-]
+  bool fd = false;                                // CAN: FD frame set (command groups, FD replies)
+  std::int64_t command_timeout_ns = 100'000'000;  // command lifetime [ns]
+  BusTimingConfig bus{};
+  // Each module's free-running microsecond clock: reading at the emulator's first SYNC [µs] and
+  // rate error [ppm] (a crystal: tens of ppm), (N-1).
+  std::array<std::uint32_t, kMaxJoints> clock_offset_us{};
+  std::array<double, kMaxJoints> clock_drift_ppm{};
   FaultConfig faults{};
 };
+
+// Spread for the CLI and tests: module j's clock offset drawn from `seed`, its drift spread
+// evenly over [−drift_ppm, +drift_ppm] across the modules.
+void spread_module_clocks(EmulatorConfig& cfg, double drift_ppm, std::uint32_t seed);
 
 // Counters of the emulated side (read from any thread).
 struct EmulatorStats {
@@ -95,15 +122,22 @@ class ModuleBank {
  public:
   ModuleBank(const EmulatorConfig& cfg, ModulePlant& plant);
   int joints() const { return cfg_.joints; }
-  // SYNC with counter c at time t: advance, measure, check lifetimes, apply latched commands.
+  // SYNC with counter c arriving at time t: advance, check lifetimes, sample and stamp.
   void on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept;
-  // Latch joint j's command (gains only if has_gains). torque_off applies at once.
+  // Joint j's command (gains only if has_gains), computed in cycle `tag`, arriving at t_ns: the
+  // plant is advanced to t_ns with the previous command, then this one applies.
   void latch(int j, double tau, double beta_ref, double beta_dot_ref, bool has_gains, double kp,
-             double kd, bool torque_off, std::int64_t t_ns) noexcept;
+             double kd, bool torque_off, std::uint8_t tag, std::int64_t t_ns) noexcept;
   void latch_gains(int j, double kp, double kd) noexcept;
-  // After on_sync: the sample and the counter module j echoes.
+  // After on_sync: the sample, the counter module j echoes and its timing record.
   const Feedback& sample() const { return sample_; }
   std::uint8_t echo(int j) const { return echo_[static_cast<std::size_t>(j)]; }
+  const wire::ModuleTiming& timing(int j) const { return timing_[static_cast<std::size_t>(j)]; }
+  // Module j's clock at host time t_ns [µs] (wrapping), and the truth the tests compare the
+  // host's clock estimate with: host time of the last sample / command application [ns].
+  std::uint32_t module_clock_us(int j, std::int64_t t_ns) const noexcept;
+  std::int64_t sample_host_ns() const { return sample_.stamp_ns; }
+  std::int64_t applied_host_ns(int j) const { return applied_ns_[static_cast<std::size_t>(j)]; }
   bool faults_active() const { return syncs_ >= cfg_.faults.onset_sync; }
   bool silent(int j) const;
   bool lose() noexcept;     // draw: drop this answer?
@@ -116,6 +150,7 @@ class ModuleBank {
 
  private:
   void apply_now() noexcept;
+  void start_clock(std::int64_t t_ns) noexcept;
 
   EmulatorConfig cfg_;
   ModulePlant& plant_;
@@ -129,6 +164,33 @@ class ModuleBank {
   std::array<bool, kMaxJoints> off_{};      // joint is torque-off
   std::array<bool, kMaxJoints> cmd_off_{};  // latched command says torque-off
   std::array<std::uint8_t, kMaxJoints> echo_{};
+  // Timing: clock origin (first SYNC), the last application per module, the records.
+  bool clock_started_ = false;
+  std::int64_t clock_origin_ns_ = 0;
+  std::array<std::int64_t, kMaxJoints> applied_ns_{};
+  std::array<std::uint8_t, kMaxJoints> applied_tag_{};
+  std::array<bool, kMaxJoints> no_command_{};
+  std::array<wire::ModuleTiming, kMaxJoints> timing_{};
+};
+
+// Wire-time bookkeeping of one bus segment: frames occupy it one after the other.
+class WireClock {
+ public:
+  explicit WireClock(bool enabled) : on_(enabled) {}
+  // A frame of `duration_ns` that can start no earlier than `earliest_ns`, and `gap_ns` after the
+  // bus went quiet (a serial module's return delay): its end time.
+  std::int64_t occupy(std::int64_t earliest_ns, std::int64_t duration_ns,
+                      std::int64_t gap_ns = 0) noexcept {
+    std::int64_t start = earliest_ns > busy_until_ ? earliest_ns : busy_until_;
+    if (on_) start += gap_ns;
+    busy_until_ = start + (on_ ? duration_ns : 0);
+    return busy_until_;
+  }
+  bool enabled() const { return on_; }
+
+ private:
+  bool on_;
+  std::int64_t busy_until_ = 0;
 };
 
 // CAN front end: reads SYNC / command / gains / FD command frames, sends feedback frames.
@@ -148,10 +210,13 @@ class CanModuleEmulator {
   void handle(const canfd_frame& rec, std::size_t n, std::int64_t now) noexcept;
   void handle_classic(const can_frame& f, std::int64_t now) noexcept;
   void on_sync(std::uint8_t counter, std::int64_t now) noexcept;
+  void enqueue(std::int64_t due, const canfd_frame& f, std::size_t size) noexcept;
   void flush(std::int64_t now) noexcept;
+  std::int64_t wire_ns(std::size_t mtu, int len) const noexcept;  // frame's wire time [ns]
 
   int fd_;
   ModuleBank bank_;
+  WireClock wire_;
   std::array<Pending, 256> queue_{};  // ring of answers waiting for their due time
   std::size_t head_ = 0, tail_ = 0;
 };
@@ -175,9 +240,12 @@ class SerialModuleEmulator {
   void enqueue(std::int64_t due, const std::uint8_t* p, std::size_t n) noexcept;
   void process(std::int64_t now) noexcept;
   void flush(std::int64_t now) noexcept;
+  std::int64_t bytes_ns(std::size_t n) const noexcept;  // wire time of n bytes [ns]
 
   int fd_;
   ModuleBank bank_;
+  WireClock wire_;
+  std::size_t packet_bytes_ = 0;  // bytes of the packet being handled (as received) [-]
   std::array<std::uint8_t, 4096> rx_{};
   dxl::Packet pkt_{};
   std::size_t rx_len_ = 0;

@@ -12,6 +12,10 @@
 // it with the torque-off flag. Timeouts are `missing` (+ IoStatus::kTimeout/kPartial), CRC errors
 // `checksum` (also a module-reported CRC error, error number 3), framing/length/id errors and
 // short reads `malformed`.
+// Timing (Feedback::timing = kModule): the feedback block carries each module's timing record
+// (PROTOCOL.md §1.1); its sample stamp goes through the module's ModuleClock (lower bound: the
+// sync-counter write's send time + its wire time), the applied command's counter maps back to
+// the Command::seq written with it. Answers after the deadline or to older cycles: kStatusLate.
 // RS-485 half-duplex assumption: the adapter switches direction itself and does not echo the
 // host's own bytes (e.g. an FTDI/U2D2-style adapter with automatic direction control).
 // read()/write()/safe_stop() never allocate, lock, throw or block past their deadline (write():
@@ -25,6 +29,7 @@
 
 #include "pedalwave/drivers/dynamixel.hpp"
 #include "pedalwave/drivers/io.hpp"
+#include "pedalwave/drivers/module_clock.hpp"
 #include "pedalwave/drivers/rolling_counter.hpp"
 
 namespace pedalwave::drivers {
@@ -60,6 +65,7 @@ class SerialDriver final : public Driver {
   void safe_stop() override;
   const DriverCounters& counters() const override { return counters_; }
   std::uint8_t sync_counter() const { return counter_; }
+  const ModuleClock& clock(int j) const { return clocks_[static_cast<std::size_t>(j)]; }
 
  private:
   bool write_all(const std::uint8_t* p, std::size_t n, std::int64_t until_ns) noexcept;
@@ -92,6 +98,10 @@ class SerialDriver final : public Driver {
   std::array<std::uint8_t, dxl::kMaxPacket> tx_{};
   std::array<std::uint8_t, kMaxJoints * dxl::kCommandBlockSize> blocks_{};
   dxl::Packet pkt_{};
+  std::array<ModuleClock, kMaxJoints> clocks_{};
+  std::array<std::uint64_t, 256> seq_of_tag_{};  // command counter c → Command::seq
+  std::int64_t sync_wire_ns_ = 0;   // the sync-counter write's wire time [ns]
+  std::int64_t sync_lower_ns_ = 0;  // no module can have sampled before this [ns]
 };
 
 }  // namespace pedalwave::drivers

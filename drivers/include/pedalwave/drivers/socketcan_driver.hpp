@@ -6,7 +6,8 @@
 // through the same read/write/decode code.
 //
 // Cycle (Driver contract): read() sends SYNC with the next 8-bit counter c, then gathers one
-// feedback frame per joint until deadline_ns with non-blocking receives and ppoll() on the
+// feedback frame per joint (and on a classic bus one timing frame, PROTOCOL.md §1.1) until
+// deadline_ns with non-blocking receives and ppoll() on the
 // remaining time. Each frame is classified with the rolling counter (rolling_counter.hpp): only
 // the first frame echoing c and received (kernel timestamp) before the deadline is used;
 // duplicates, late frames (answers to older SYNCs, or received after the deadline), backwards
@@ -17,7 +18,13 @@
 // bus_errors and mark every joint kStatusBusError; read() then returns IoStatus::kBusError.
 // write() sends the commands tagged with c (classic: one command frame per joint + one gains frame
 // per cycle, round robin with changed gains first; FD: one command-group frame per 6 joints),
-// which the modules apply at the next SYNC. safe_stop() sends torque-off to every module.
+// which the modules apply on arrival. safe_stop() sends torque-off to every module.
+// Timing (Feedback::timing = kModule): each module's sample stamp goes through its ModuleClock
+// (lower bound: the SYNC's send time + its wire time) into Feedback::sample_ns; the applied
+// command's tag maps back to the Command::seq written with it, its age to applied_ns. A joint
+// whose data is fresh but whose timing record did not come is kStatusNoTiming (sample_ns = 0).
+// An answer that comes after the deadline, or to an older SYNC, is kStatusLate (timing), not
+// stale; duplicates stay kStatusStale and backward counters kStatusOutOfOrder (module faults).
 // read()/write()/safe_stop() never allocate, lock, throw or block past the deadline.
 #pragma once
 
@@ -32,6 +39,7 @@
 
 #include "pedalwave/drivers/can_protocol.hpp"
 #include "pedalwave/drivers/io.hpp"
+#include "pedalwave/drivers/module_clock.hpp"
 #include "pedalwave/drivers/rolling_counter.hpp"
 
 namespace pedalwave::drivers {
@@ -84,6 +92,7 @@ class SocketCanDriver final : public Driver {
 
   std::uint8_t sync_counter() const { return sync_counter_; }  // counter of the last SYNC [-]
   int fd() const { return fd_; }
+  const ModuleClock& clock(int j) const { return clocks_[static_cast<std::size_t>(j)]; }
 
  private:
   enum class Tx : std::uint8_t { kOk, kDropped, kDown };
@@ -94,6 +103,10 @@ class SocketCanDriver final : public Driver {
   void handle_frame(const canfd_frame& f, std::size_t nbytes, std::int64_t stamp_ns) noexcept;
   void handle_error_frame(const can_frame& f) noexcept;
   void handle_feedback(const can_frame& f, std::int64_t stamp_ns) noexcept;
+  void handle_feedback_fd(const canfd_frame& f, std::int64_t stamp_ns) noexcept;
+  void take_feedback(int j, const can::ModuleFeedback& fb, const wire::ModuleTiming* t,
+                     std::int64_t stamp_ns) noexcept;
+  void handle_timing(const can_frame& f, std::int64_t stamp_ns) noexcept;
   int pick_gains_joint(const Command& cmd) noexcept;
 
   int fd_ = -1;
@@ -119,6 +132,13 @@ class SocketCanDriver final : public Driver {
   std::array<bool, kMaxJoints> gains_sent_{};
   int gains_cursor_ = 0;
   alignas(cmsghdr) std::array<char, 128> cmsg_buf_{};
+  // Timing: this cycle's records, the module clocks, tag → Command::seq, the SYNC's lower bound.
+  std::array<wire::ModuleTiming, kMaxJoints> timing_{};
+  std::array<bool, kMaxJoints> have_timing_{};
+  std::array<ModuleClock, kMaxJoints> clocks_{};
+  std::array<std::uint64_t, 256> seq_of_tag_{};
+  std::int64_t sync_wire_ns_ = 0;   // SYNC frame's wire time at the configured bit rate [ns]
+  std::int64_t sync_lower_ns_ = 0;  // no module can have sampled before this [ns]
 };
 
 }  // namespace pedalwave::drivers

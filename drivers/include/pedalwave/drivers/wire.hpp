@@ -102,4 +102,31 @@ inline std::uint16_t unpack_module_status(std::uint8_t nibble) noexcept {
 inline constexpr std::uint16_t kModuleStatusMask =
     kStatusSaturated | kStatusOverTemp | kStatusEncoderFault | kStatusTorqueOff;
 
+// A module's timing record (PROTOCOL.md §1.1), carried next to its feedback on every bus: when
+// it sampled, by its own free-running microsecond clock, and which command it applied last and
+// how long before the sample.
+inline constexpr std::uint16_t kAgeMaxUs = 0x7FFF;     // ages saturate here [µs]
+inline constexpr std::uint16_t kAgeNoCommand = 0x8000;  // flag: output runs on no command
+struct ModuleTiming {
+  std::uint32_t sample_us = 0;     // module clock at the sample [µs], wraps every 2³² µs
+  std::uint16_t applied_age_us = 0;  // sample − application of the last command [µs], ≤ kAgeMaxUs
+  bool no_command = false;         // never commanded, or its command lifetime expired (output off)
+  std::uint8_t applied_tag = 0;    // counter c of the command applied last (mod 16 on classic CAN)
+};
+inline std::uint16_t pack_age(const ModuleTiming& t) noexcept {
+  return static_cast<std::uint16_t>((t.applied_age_us > kAgeMaxUs ? kAgeMaxUs : t.applied_age_us) |
+                                    (t.no_command ? kAgeNoCommand : 0));
+}
+inline void unpack_age(std::uint16_t raw, ModuleTiming& t) noexcept {
+  t.applied_age_us = static_cast<std::uint16_t>(raw & kAgeMaxUs);
+  t.no_command = (raw & kAgeNoCommand) != 0;
+}
+inline void put_u32(std::uint8_t* p, std::uint32_t v) noexcept {
+  put_u16(p, static_cast<std::uint16_t>(v & 0xFFFFu));
+  put_u16(p + 2, static_cast<std::uint16_t>(v >> 16));
+}
+inline std::uint32_t get_u32(const std::uint8_t* p) noexcept {
+  return static_cast<std::uint32_t>(get_u16(p)) | (static_cast<std::uint32_t>(get_u16(p + 2)) << 16);
+}
+
 }  // namespace pedalwave::drivers::wire

@@ -104,6 +104,10 @@ class Runtime {
   Runtime(const Runtime&) = delete;
   Runtime& operator=(const Runtime&) = delete;
 
+  // Commands kept for the observer (drivers::CommandHistory): the modules name the command they
+  // applied by its tag, at most 16 cycles back (the 4-bit tag of classic CAN).
+  static constexpr int kCommandHistory = 16;
+
   // Applies cfg.rt to the calling thread (throws if require_rt and refused, after safe_stop()),
   // CONFIGURED → READY, then runs the loop until one of the exits above. Call once.
   RunResult run();
@@ -166,6 +170,8 @@ class Runtime {
   // Cycle workspace (sized once).
   drivers::Feedback fb_{};
   drivers::Command cmd_{};
+  std::array<drivers::Command, kCommandHistory> history_{};  // written commands, by seq % 16
+  std::uint64_t newest_written_ = 0;                         // seq of the newest in history_
   CycleSample sample_{};
   std::array<std::int64_t, drivers::kMaxJoints> last_fresh_ns_{};  // last fresh frame per joint [ns]
   std::array<OperatorCommand, 64> pending_{};                        // commands taken this cycle

@@ -74,10 +74,12 @@ class Observer {
   virtual ~Observer() = default;
   // Before the loop starts (not real-time): forget all state.
   virtual void reset() {}
-  // Every cycle, in every mode the loop runs (READY and RUNNING). last_cmd is the command written
-  // in the previous cycle (all zero / torque_off before the first). Fills residual, tau_ext, body,
+  // Every cycle, in every mode the loop runs (READY and RUNNING). cmds holds the commands written
+  // in the last Runtime::kCommandHistory cycles; cmds.last() is the previous cycle's (torque_off
+  // before the first). With FeedbackTiming::kModule the feedback names, per joint, which of them
+  // the module applied and when. Fills residual, tau_ext, body,
   // forward_speed of the sample; returns the verdict (healthy: fault = kNone, severity = kInfo).
-  virtual Verdict observe(const drivers::Feedback& fb, const drivers::Command& last_cmd, double t,
+  virtual Verdict observe(const drivers::Feedback& fb, const drivers::CommandHistory& cmds, double t,
                           double dt, CycleSample& sample) = 0;
 };
 

@@ -166,10 +166,14 @@ class FaultObserver {
   // Forget everything (latched faults included); the next observe() starts the residuals.
   void reset();
 
-  // One cycle: fb = this cycle's measurements, last_cmd = the command applied since the previous
-  // cycle, t = controller time [s], dt = time since the previous cycle [s]. Returns the number of
+  // One cycle: fb = this cycle's measurements, cmds = the commands written recently (a single
+  // Command converts: the one applied since the previous cycle), t = controller time [s], dt =
+  // time since the previous cycle's deadline [s]. With fb.timing == kNominal the residual and the
+  // consistency check integrate over dt with cmds.last() acting throughout (the in-process
+  // plant); with kModule over each joint's measured sample interval with the command(s) the
+  // module applied in it, split at its application time (file comment). Returns the number of
   // latched faults (faults() holds them, oldest first). Never allocates, locks or throws.
-  int observe(const drivers::Feedback& fb, const drivers::Command& last_cmd, double t, double dt);
+  int observe(const drivers::Feedback& fb, const drivers::CommandHistory& cmds, double t, double dt);
 
   // ---- Results of the last observe() ----
   const std::array<double, kMaxJoints>& residual() const { return r_; }   // r [N·m]
@@ -179,6 +183,9 @@ class FaultObserver {
   // Predicted θ_N, p_x, p_z [rad, m, m] and rates [rad/s, m/s] (zeros without the body model).
   const std::array<double, 6>& body() const { return body_; }
   double forward_speed() const { return speed_; }  // averaged predicted ṗ_x [m/s]
+  // Sample intervals not integrated (timing record missing, command not kept, two commands
+  // applied in one interval) since reset() [-].
+  std::uint64_t intervals_skipped() const { return intervals_skipped_; }
   const FaultRecord* faults() const { return latched_.data(); }
   int fault_count() const { return n_latched_; }
   // The most severe latched fault (ties: the earliest), or nullptr.
@@ -191,8 +198,17 @@ class FaultObserver {
   bool joint_latched(int j) const;
   void check_frame(const drivers::Feedback& fb, double t);
   bool check_joint(const drivers::Feedback& fb, int j, double t);
-  void residual_step(const drivers::Feedback& fb, const drivers::Command& cmd, int j, double dt,
-                     double t);
+  // One sample interval of a joint: its length and the commands that acted over it.
+  struct Interval {
+    double dt = 0.0;                         // length [s]
+    const drivers::Command* c0 = nullptr;    // in effect from the interval's start
+    const drivers::Command* c1 = nullptr;    // applied tau1 after the start (nullptr: none)
+    double tau1 = 0.0;                       // [s]
+    bool nominal = true;                     // FeedbackTiming::kNominal
+  };
+  bool make_interval(const drivers::Feedback& fb, const drivers::CommandHistory& cmds, int j,
+                     double dt, Interval& iv);
+  void residual_step(const drivers::Feedback& fb, const Interval& iv, int j, double t);
   void classify(int j, double t);
 
   ObserverParams p_;
@@ -204,6 +220,7 @@ class FaultObserver {
   std::array<double, 6> body_{};
   double speed_ = 0.0;
   double elapsed_ = 0.0;  // time since reset [s]
+  std::uint64_t intervals_skipped_ = 0;
   // Frame-level state
   bool have_prev_frame_ = false;
   std::uint64_t prev_seq_ = 0;

@@ -17,7 +17,7 @@ class RuntimeObserver final : public runtime::Observer {
   void reset() override { core_.reset(); }
   // Verdict: the most severe latched fault (ties: the earliest) with its evidence; flags = every
   // latched class; healthy: fault = kNone, severity = kInfo.
-  runtime::Verdict observe(const drivers::Feedback& fb, const drivers::Command& last_cmd, double t,
+  runtime::Verdict observe(const drivers::Feedback& fb, const drivers::CommandHistory& cmds, double t,
                            double dt, runtime::CycleSample& sample) override;
 
   FaultObserver& core() { return core_; }

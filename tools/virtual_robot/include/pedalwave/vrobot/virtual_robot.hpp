@@ -108,8 +108,17 @@ enum class Bus : std::uint8_t { kCan, kSerial };
 struct VirtualRobotOptions {
   Bus bus = Bus::kCan;
   drivers::EmulatorConfig emulator{};  // joints are taken from the scene (N-1); fd, lifetime,
-                                       // faults as given
+                                       // bus timing, clocks, faults as given
   PlantOptions plant{};
+  int thread_priority = 0;  // SCHED_FIFO priority of the modules' thread (0: normal scheduling;
+                            // refused → normal, said in thread_note())
+  int thread_cpu = -1;      // pin the modules' thread to this CPU (−1: no pinning)
+  // Largest plant step of a fixed-step integrator [s] (0: the scene's). The virtual robot is the
+  // reference the onboard observer is checked against: its own integration error must stay well
+  // inside the observer's budget. The implicit scheme evaluates the module PD at the end of each
+  // step, an apparent viscous term k_p h/2 · β̇ (runtime/observer/README.md §1): ≤ 0.005 N·m at
+  // h = 1.25e-4 s, a sixth of the residual threshold (0.019 N·m at the scenes' 5e-4 s).
+  double max_step = 1.25e-4;
 };
 
 // The plant and the module emulator on `fd` (CAN: a raw CAN socket or a SOCK_SEQPACKET socket-pair
@@ -124,6 +133,8 @@ class VirtualRobot {
 
   void start();
   void stop();  // idempotent; joins the thread
+  // After start(): what the modules' thread got ("modules' thread: SCHED_FIFO 70" or why not).
+  const std::string& thread_note() const { return thread_note_; }
 
   int joints() const { return plant_->joints(); }
   SimulationPlant& plant() { return *plant_; }
@@ -140,6 +151,7 @@ class VirtualRobot {
   std::unique_ptr<drivers::SerialModuleEmulator> serial_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
+  std::string thread_note_;
 };
 
 // A pseudo-terminal for the serial bus: the emulator talks on `master`; the host opens

@@ -1,0 +1,69 @@
+// The host's estimate of one module's clock (drivers/PROTOCOL.md §1.1): maps the module's free-
+// running, wrapping microsecond counter onto CLOCK_MONOTONIC, with its offset and its drift.
+//
+// Each cycle gives one pair (m_k, h_k): the module's stamp of its sample (unwrapped, µs) and a
+// host time no later than the sample (the SYNC left the host at h_k − wire time; it cannot have
+// been sampled before it arrived). So x_k = h_k − 1000·m_k is a LOWER bound of the true offset
+// o(m) = host − 1000·m, which drifts linearly: o(m) = a + b·m, b = drift [ns/µs = 1e3 ppm].
+// Host delays (scheduling, queues) only ever make x_k smaller, so the least-delayed samples lie
+// on the line: per block of kBlock samples the largest x_k is kept, and a least-squares line
+// through the last kBlocks block maxima gives (a, b). Until two blocks exist the mapping is the
+// running maximum with b = 0.
+//
+// The mapping changes only when a block closes (every kBlock samples), by the envelope's noise
+// (microseconds): differences of mapped times within a block are exact to the clock's resolution
+// and the drift estimate. update() and to_host() are O(1) (the fit: kBlocks points, once per
+// block), allocation-free and noexcept.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+namespace pedalwave::drivers {
+
+class ModuleClock {
+ public:
+  static constexpr int kBlock = 128;  // samples per envelope block [-]
+  static constexpr int kBlocks = 16;  // blocks in the line fit [-]
+
+  void reset() noexcept { *this = ModuleClock{}; }
+  // One sample stamped `module_us` (the module's clock, wrapping at 2³²) that cannot have happened
+  // before host time `lower_ns` (CLOCK_MONOTONIC) [ns]. Returns the sample's host time [ns].
+  std::int64_t update(std::uint32_t module_us, std::int64_t lower_ns) noexcept;
+  // Host time [ns] of module time `module_us`, taken as the one within ±2³¹ µs of the last update.
+  std::int64_t to_host(std::uint32_t module_us) const noexcept;
+  bool started() const noexcept { return started_; }
+  bool locked() const noexcept { return blocks_ >= 2; }  // drift estimated
+  double drift_ppm() const noexcept { return b_ * 1e3; }  // module rate error estimate [ppm]
+  // Host time minus the lower bound of the last sample [ns] (how far the estimate places the
+  // sample after the earliest possible instant; ≥ 0 when the estimate is consistent).
+  std::int64_t last_margin_ns() const noexcept { return last_margin_ns_; }
+
+ private:
+  std::int64_t unwrap(std::uint32_t us) const noexcept {
+    return last_m_ + static_cast<std::int32_t>(us - last_raw_);
+  }
+  double host_of(std::int64_t m) const noexcept {
+    return 1000.0 * static_cast<double>(m) + a_ + b_ * static_cast<double>(m - m_ref_);
+  }
+  void close_block() noexcept;
+
+  bool started_ = false;
+  std::uint32_t last_raw_ = 0;    // last stamp as received [µs]
+  std::int64_t last_m_ = 0;       // last stamp, unwrapped (0 = the first) [µs]
+  std::int64_t base_ns_ = 0;      // host time of the first lower bound [ns] (x is relative to it)
+  // Current block: its best (largest) x and where.
+  int in_block_ = 0;
+  double block_x_ = 0.0;
+  std::int64_t block_m_ = 0;
+  // Maxima of the last blocks (ring).
+  std::array<double, kBlocks> bx_{};
+  std::array<std::int64_t, kBlocks> bm_{};
+  int blocks_ = 0, head_ = 0;
+  // Mapping host − base = 1000·m + a + b·(m − m_ref) [ns].
+  double a_ = 0.0, b_ = 0.0;
+  std::int64_t m_ref_ = 0;
+  std::int64_t last_margin_ns_ = 0;
+};
+
+}  // namespace pedalwave::drivers

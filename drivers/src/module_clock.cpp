@@ -1,0 +1,77 @@
+#include "pedalwave/drivers/module_clock.hpp"
+
+#include <cmath>
+
+namespace pedalwave::drivers {
+
+std::int64_t ModuleClock::update(std::uint32_t module_us, std::int64_t lower_ns) noexcept {
+  if (!started_) {
+    started_ = true;
+    last_raw_ = module_us;
+    last_m_ = 0;
+    base_ns_ = lower_ns;
+    in_block_ = 0;
+  }
+  const std::int64_t m = unwrap(module_us);
+  last_raw_ = module_us;
+  last_m_ = m;
+  // Lower bound of the offset at m (relative to base_ns_).
+  const double x = static_cast<double>(lower_ns - base_ns_) - 1000.0 * static_cast<double>(m);
+  if (in_block_ == 0 || x > block_x_) {
+    block_x_ = x;
+    block_m_ = m;
+  }
+  ++in_block_;
+  if (blocks_ == 0) {
+    // Not one block yet: the running maximum, no drift.
+    if (in_block_ == 1 || x > a_ + b_ * static_cast<double>(m - m_ref_)) {
+      a_ = x;
+      m_ref_ = m;
+    }
+  }
+  if (in_block_ >= kBlock) close_block();
+  const std::int64_t host = base_ns_ + std::llround(host_of(m));
+  last_margin_ns_ = host - lower_ns;
+  return host;
+}
+
+void ModuleClock::close_block() noexcept {
+  bx_[static_cast<std::size_t>(head_)] = block_x_;
+  bm_[static_cast<std::size_t>(head_)] = block_m_;
+  head_ = (head_ + 1) % kBlocks;
+  if (blocks_ < kBlocks) ++blocks_;
+  in_block_ = 0;
+  if (blocks_ < 2) {
+    a_ = bx_[0];
+    b_ = 0.0;
+    m_ref_ = bm_[0];
+    return;
+  }
+  // Least squares x = a + b (m − m_ref) through the block maxima, m_ref = the newest.
+  const std::int64_t ref = block_m_;
+  double sm = 0, sx = 0, smm = 0, smx = 0;
+  for (int i = 0; i < blocks_; ++i) {
+    const double dm = static_cast<double>(bm_[static_cast<std::size_t>(i)] - ref);
+    const double xi = bx_[static_cast<std::size_t>(i)];
+    sm += dm;
+    sx += xi;
+    smm += dm * dm;
+    smx += dm * xi;
+  }
+  const double n = blocks_;
+  const double det = n * smm - sm * sm;
+  if (!(det > 0)) return;
+  b_ = (n * smx - sm * sx) / det;
+  a_ = (sx - b_ * sm) / n;
+  m_ref_ = ref;
+  // The line may sit below the best block bound by the envelope's noise; never below any bound
+  // of the newest block (those are proven): lift it to the newest maximum if needed.
+  const double at_newest = a_;
+  if (block_x_ > at_newest) a_ = block_x_;
+}
+
+std::int64_t ModuleClock::to_host(std::uint32_t module_us) const noexcept {
+  return base_ns_ + std::llround(host_of(unwrap(module_us)));
+}
+
+}  // namespace pedalwave::drivers

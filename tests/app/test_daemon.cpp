@@ -2,6 +2,14 @@
 // so runs are deterministic; configuration errors are refused before anything starts.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include <unistd.h>
+
 #include "daemon.hpp"
 #include "pedalwave/config/daemon.hpp"
 
@@ -13,6 +21,21 @@ config::DaemonConfig lockstep(double duration) {
   c.duration = duration;
   c.runtime.max_cycles = static_cast<std::uint64_t>(duration * c.runtime.rt.rate_hz);
   return c;
+}
+std::string read_all(const std::filesystem::path& p) {
+  std::ifstream f(p);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+// An operator console that says "stop walking" once the robot walks.
+void stop_walking_once_running(runtime::Runtime& rt) {
+  while (rt.mode() != runtime::Mode::kRunning && rt.mode() != runtime::Mode::kSafeStop)
+    std::this_thread::yield();
+  runtime::OperatorCommand c;
+  c.kind = runtime::OperatorCommandKind::kStopWalking;
+  c.id = 7;
+  rt.post(c);
 }
 std::string config_error(const std::string& yaml) {
   try {
@@ -61,4 +84,84 @@ TEST(Daemon, ConfigurationErrorsNameFileKeyAndExpectation) {
   EXPECT_NE(e.find("realtime.priority = \"150\""), std::string::npos) << e;
   e = config_error("rate_hz: 1000\ndriver: {type: sim, scene: nowhere.yaml}\n");
   EXPECT_NE(e.find("nowhere.yaml"), std::string::npos) << e;
+}
+
+// The field run of the issue, in miniature: a latched observer warning and an operator "stop
+// walking" (gait frozen, holding) in a run that ends at its cycle limit. The summary, the exit
+// line, the event log and the JSON report all tell both, with value, threshold and 1-based joint.
+TEST(Daemon, WarningsAndHoldsAreReportedNotNoFault) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("pedalwave_report_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  auto cfg = lockstep(3.0);
+  // A snag on joint index 1 ("joint 2" in every text) for 0.4 s that the modules' torque limit
+  // cannot overcome: persistent torque saturation, a warning (keep walking, publish it). Longer,
+  // it would turn the joint past the plausible range (a stop).
+  model::FaultSpec f;
+  f.type = model::FaultType::kJointLoad;
+  f.joint = 1;
+  f.t_start = 0.5;
+  f.value = 1.2;  // [N·m], > u_max
+  f.duration = 0.4;
+  cfg.driver.scene.faults.push_back(f);
+  cfg.driver.scene.torque_limit_on = true;
+  cfg.driver.scene.torque_limit.u_max = 0.8;
+  cfg.log_file = (dir / "events.log").string();
+  const std::string report = (dir / "report.json").string();
+  const auto r = app::run_daemon(cfg, {.plots_dir = "",
+                                       .telemetry = false,
+                                       .print = false,
+                                       .report_json = report,
+                                       .operator_console = stop_walking_once_running});
+  EXPECT_EQ(r.run.reason, runtime::ExitReason::kCycleLimit);
+  EXPECT_EQ(r.run.fault, runtime::FaultClass::kNone);
+  SCOPED_TRACE(r.summary);
+  // Summary: every event with value and threshold, joints 1-based, the reaction taken.
+  EXPECT_NE(r.summary.find("warning saturation joint 2 (value "), std::string::npos);
+  EXPECT_NE(r.summary.find("threshold "), std::string::npos);
+  EXPECT_NE(r.summary.find("→ continue"), std::string::npos);
+  EXPECT_NE(r.summary.find("operator: stop walking: gait frozen, holding → hold"), std::string::npos);
+  // Exit line: no "no fault" when a warning and a hold happened; it names both.
+  EXPECT_EQ(r.exit_line.find("no fault"), std::string::npos) << r.exit_line;
+  EXPECT_NE(r.exit_line.find("no stopping fault"), std::string::npos) << r.exit_line;
+  EXPECT_NE(r.exit_line.find("warning saturation joint 2"), std::string::npos) << r.exit_line;
+  EXPECT_NE(r.exit_line.find("operator stop walking at "), std::string::npos) << r.exit_line;
+  EXPECT_NE(r.exit_line.find("→ gait frozen, holding"), std::string::npos) << r.exit_line;
+  // The event log line shows the 1-based joint too.
+  const std::string log = read_all(cfg.log_file);
+  EXPECT_NE(log.find("saturation joint 2 (value "), std::string::npos) << log;
+  EXPECT_EQ(log.find("saturation joint 1 "), std::string::npos) << log;
+  // JSON report: the schema's keys, the events with 1-based joints.
+  const std::string json = read_all(report);
+  for (const char* key : {"\"name\":", "\"config\":", "\"driver\":\"sim\"", "\"rate_hz\":",
+                          "\"duration_s\":3", "\"exit\":{\"reason\":\"cycle_limit\"",
+                          "\"final_mode\":\"SAFE_STOP\"", "\"fault\":\"none\"", "\"joint\":null",
+                          "\"signal\":0", "\"events\":[", "\"events_dropped\":0", "\"loop\":{",
+                          "\"max_skipped\":", "\"timing_us\":{", "\"wake\":{", "\"p999\":",
+                          "\"bins\":[[", "\"driver\":{\"frames_tx\":", "\"rx_dropped\":",
+                          "\"settings\":{", "\"stale_timeout_s\":", "\"observer\":true",
+                          "\"telemetry\":false", "\"kind\":\"warning\",\"class\":\"saturation"
+                          "\",\"severity\":\"warning\",\"joint\":2",
+                          "\"kind\":\"operator\"", "\"reaction\":\"hold\""})
+    EXPECT_NE(json.find(key), std::string::npos) << key << "\n" << json.substr(0, 2000);
+#ifdef PEDALWAVE_PYTHON3
+  // A real JSON parser and a schema check (tests/app/check_run_report.py).
+  const std::string cmd = std::string(PEDALWAVE_PYTHON3) + " " CHECK_RUN_REPORT_PY " " + report +
+                          " > " + (dir / "check.txt").string() + " 2>&1";
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << read_all(dir / "check.txt");
+#endif
+  fs::remove_all(dir);
+}
+
+TEST(Daemon, AnUnwritableReportPathIsRefusedBeforeTheRun) {
+  try {
+    app::run_daemon(lockstep(1.0), {.plots_dir = "",
+                                    .telemetry = false,
+                                    .print = false,
+                                    .report_json = "/nonexistent-dir/report.json"});
+    FAIL() << "expected a refusal";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("--report-json /nonexistent-dir/report.json"), std::string::npos)
+        << e.what();
+  }
 }

@@ -107,3 +107,19 @@ TEST(LoopMetrics, TableNamesEveryStage) {
 }
 
 }  // namespace
+
+TEST(LatencyHistogram, BinCountsSumToTheCountAndSitWhereTheValuesFall) {
+  LatencyHistogram h;
+  h.record(250);         // fine bin [200, 300)
+  h.record(250);
+  h.record(150'500);     // coarse bin [150, 151) µs
+  h.record(9'000'000);   // overflow
+  std::uint64_t sum = 0;
+  for (std::size_t b = 0; b < LatencyHistogram::kBins; ++b) sum += h.bin_count(b);
+  EXPECT_EQ(sum, h.count());
+  EXPECT_EQ(h.bin_count(LatencyHistogram::bin_of(250)), 2u);
+  EXPECT_EQ(LatencyHistogram::bin_lower(LatencyHistogram::bin_of(250)), 200);
+  EXPECT_EQ(h.bin_count(LatencyHistogram::bin_of(150'500)), 1u);
+  EXPECT_EQ(h.bin_count(LatencyHistogram::kBins - 1), h.overflows());
+  EXPECT_EQ(h.bin_count(LatencyHistogram::kBins), 0u) << "out of range: 0, no UB";
+}

@@ -61,7 +61,10 @@ TEST(MonitorState, RendersJointsModeFaultsAndTiming) {
   EXPECT_NE(plain.find("LIVE"), std::string::npos) << plain;
   EXPECT_NE(plain.find("mode running"), std::string::npos) << plain;
   EXPECT_NE(plain.find("+0.1250 m/s"), std::string::npos) << plain;
-  EXPECT_NE(plain.find("faults: encoder_stuck  isolated joint 2"), std::string::npos) << plain;
+  // Fields are 0-based, the screen 1-based: fault_joint = 2 is the third joint.
+  EXPECT_NE(plain.find("faults: encoder_stuck  isolated joint 3"), std::string::npos) << plain;
+  EXPECT_NE(plain.find("FAULT encoder_stuck (stop) joint 3"), std::string::npos) << plain;
+  EXPECT_NE(plain.find("stop     joint   3"), std::string::npos) << plain;
   EXPECT_NE(plain.find("wake latency 12.3 us"), std::string::npos) << plain;
   EXPECT_NE(plain.find("overruns 4"), std::string::npos) << plain;
   EXPECT_NE(plain.find("-1.5000"), std::string::npos) << "joint 1 torque missing\n" << plain;

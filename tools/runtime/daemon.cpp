@@ -3,13 +3,17 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <sstream>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
 #include "gait_stage.hpp"
+#include "run_report.hpp"
+#include "pedalwave/drivers/fault_injecting_driver.hpp"
 #include "pedalwave/drivers/serial_driver.hpp"
 #include "pedalwave/drivers/sim_driver.hpp"
 #include "pedalwave/drivers/socketcan_driver.hpp"
@@ -42,22 +46,33 @@ class SampleRecorder final : public runtime::TelemetrySink {
   int every_;
 };
 
-std::unique_ptr<drivers::Driver> make_driver(const config::DaemonConfig& cfg, double duration) {
+// The configured driver; on the simulated plant with a scene `faults:` list, the SimDriver wrapped
+// in a FaultInjectingDriver that applies them.
+struct OwnedDriver {
+  std::unique_ptr<drivers::Driver> base;
+  std::unique_ptr<drivers::FaultInjectingDriver> faults;
+  drivers::Driver* top() const { return faults ? faults.get() : base.get(); }
+};
+
+OwnedDriver make_driver(const config::DaemonConfig& cfg, double duration) {
   const config::DriverSelection& d = cfg.driver;
+  OwnedDriver o;
   switch (d.kind) {
     case config::DriverKind::kSim: {
-      drivers::SimDriverOptions o = d.sim;
+      drivers::SimDriverOptions so = d.sim;
       const double rate = cfg.runtime.rt.rate_hz;
-      o.record_every = std::max(1, static_cast<int>(std::lround(rate / 100.0)));  // 100 Hz
-      o.record_capacity = static_cast<std::size_t>((duration > 0 ? duration : 600.0) * 100.0) + 16;
-      auto sim = std::make_unique<drivers::SimDriver>(d.scene, o);
+      so.record_every = std::max(1, static_cast<int>(std::lround(rate / 100.0)));  // 100 Hz
+      so.record_capacity = static_cast<std::size_t>((duration > 0 ? duration : 600.0) * 100.0) + 16;
+      auto sim = std::make_unique<drivers::SimDriver>(d.scene, so);
+      if (!d.scene.faults.empty()) o.faults = std::make_unique<drivers::FaultInjectingDriver>(*sim);
       sim->start();  // free-running plants start their own thread; lockstep: no-op
-      return sim;
+      o.base = std::move(sim);
+      break;
     }
-    case config::DriverKind::kSocketCan: return drivers::SocketCanDriver::open(d.can);
-    case config::DriverKind::kSerial: return drivers::SerialDriver::open(d.serial);
+    case config::DriverKind::kSocketCan: o.base = drivers::SocketCanDriver::open(d.can); break;
+    case config::DriverKind::kSerial: o.base = drivers::SerialDriver::open(d.serial); break;
   }
-  return nullptr;
+  return o;
 }
 
 double com_x(const model::Model& m, model::Data& data, const double* q) {
@@ -180,8 +195,16 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   std::ostringstream log;
   std::ostream& out = opt.print ? std::cout : log;
 
-  std::unique_ptr<drivers::Driver> owned = opt.driver ? nullptr : make_driver(cfg, cfg.duration);
-  drivers::Driver* driver = opt.driver ? opt.driver : owned.get();
+  // The report file is opened before anything starts: a path that cannot be written is refused
+  // now, not discovered after a long run.
+  std::ofstream report;
+  if (!opt.report_json.empty()) {
+    report.open(opt.report_json);
+    if (!report) throw std::runtime_error("--report-json " + opt.report_json + ": cannot open the file for writing");
+  }
+  const OwnedDriver owned = opt.driver ? OwnedDriver{} : make_driver(cfg, cfg.duration);
+  drivers::Driver* driver = opt.driver ? opt.driver : owned.top();
+  auto* sim = dynamic_cast<drivers::SimDriver*>(opt.driver ? opt.driver : owned.base.get());
   GaitStage stage(cfg.controller);
   const std::unique_ptr<runtime::Observer> observer = make_observer(cfg);
   auto rt = std::make_unique<runtime::Runtime>(cfg.runtime, *driver, stage, observer.get());
@@ -212,6 +235,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
 #endif
   out << "pedalwave runtime '" << cfg.name << "': driver " << config::to_string(cfg.driver.kind)
       << (cfg.driver.kind == config::DriverKind::kSim ? " (scene " + cfg.driver.scene.name + ")" : "")
+      << (owned.faults ? ", " + std::to_string(owned.faults->faults().size()) + " injected fault(s)" : "")
       << ", " << cfg.runtime.rt.rate_hz << " Hz, "
       << (cfg.duration > 0 ? std::to_string(cfg.duration) + " s" : std::string("until SIGINT/SIGTERM"))
       << ", PD " << (cfg.controller.pd.placement == control::PdPlacement::kModule ? "module-side" : "host-side")
@@ -227,24 +251,28 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   consumer.start();
   runtime::install_stop_signal_handlers();
   std::thread loop([&] { res.run = rt->run(); });
+  std::thread console;
+  if (opt.operator_console) console = std::thread([&] { opt.operator_console(*rt); });
   loop.join();
+  if (console.joinable()) console.join();
   res.summary = consumer.stop(&res.run);
 #if PEDALWAVE_HAS_DDS
   dds.reset();
 #endif
 
-  // Report: the real-time setup, the loop summary, faults, and (sim) what the robot did.
-  const runtime::RtReport& r = res.run.rt;
-  (void)r;
-  if (!cfg.log_file.empty()) out << res.summary << "\n";  // else the consumer logged it
-  out << "exit: " << runtime::to_string(res.run.reason) << ", final mode "
-      << runtime::to_string(res.run.final_mode);
-  if (res.run.fault != runtime::FaultClass::kNone)
-    out << ", fault " << runtime::to_string(res.run.fault) << " on joint " << res.run.fault_joint + 1;
-  else
-    out << ", no fault";
-  out << "\n";
-  if (auto* sim = dynamic_cast<drivers::SimDriver*>(driver)) {
+  // Report: the summary (events, loop timing; the consumer logged it unless there is a log file),
+  // the exit line, the JSON report, and (sim) what the robot did.
+  res.exit_line = runtime::format_exit_line(res.run, consumer.events());
+  out << (cfg.log_file.empty() ? res.exit_line : res.summary) << "\n";  // the summary ends with it
+  if (report.is_open()) {
+    write_run_report(report, {.cfg = cfg, .run = res.run, .metrics = rt->metrics(),
+                              .events = consumer.events(), .counters = driver->counters(),
+                              .observer = observer != nullptr, .telemetry = res.telemetry_active});
+    report.close();
+    if (!report) throw std::runtime_error("--report-json " + opt.report_json + ": write failed");
+    out << "report: " << opt.report_json << "\n";
+  }
+  if (sim) {
     sim->stop();
     const drivers::SimRecording& rec = sim->recording();
     const model::Model& m = sim->sim().plant().model();

@@ -1,9 +1,13 @@
 // The runtime daemon, as a library so tests run it in-process: wires the configured driver
 // (simulated plant, SocketCAN, serial servo bus), the gait controller, the observer and the DDS
 // telemetry around runtime::Runtime, runs the loop on its own thread until the duration, a signal
-// or a fault, and reports: forward speed, loop timing percentiles, faults; optional plots.
+// or a fault, and reports: every fault, warning, hold and operator command of the run (summary and
+// exit line, joints 1-based), forward speed, loop timing percentiles; optional plots and a JSON
+// report (run_report.hpp). On the simulated plant, a scene's `faults:` list is injected
+// (drivers::FaultInjectingDriver around the SimDriver).
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -20,13 +24,19 @@ struct DaemonOptions {
   // SerialDriver on a pty) instead of building the configured one; the configuration still says
   // which bus it is and is validated as usual. nullptr = build the configured driver.
   drivers::Driver* driver = nullptr;
+  std::string report_json{};  // write the JSON report of the run here (run_report.hpp); empty = none
+  // Runs on its own thread while the loop runs, given the runtime (an operator console; tests post
+  // commands with Runtime::post). It must return once rt.mode() is SAFE_STOP; run_daemon joins it
+  // after the loop. Runtime::post takes ONE producer: not together with DDS commands.
+  std::function<void(runtime::Runtime&)> operator_console{};
 };
 
 struct DaemonResult {
   runtime::RunResult run;
   double forward_speed = 0.0;  // average COM speed along +X after the first 2 s [m/s] (sim only)
   double sim_time = 0.0;       // simulated time covered [s] (sim only)
-  std::string summary;         // the printed summary
+  std::string summary;         // the printed summary (ends with the exit line)
+  std::string exit_line;       // "exit: cycle_limit, final mode SAFE_STOP, no stopping fault; …"
   bool telemetry_active = false;
 };
 

@@ -11,12 +11,14 @@
 
 int main(int argc, char** argv) {
   CLI::App app{"pedalwave runtime daemon: read → observe → control → write at a fixed rate"};
-  std::string config_path, plots_dir;
+  std::string config_path, plots_dir, report_json;
   double duration = -1.0;
   bool check_only = false, no_telemetry = false;
   app.add_option("-c,--config", config_path, "daemon configuration (YAML)")->required();
   app.add_option("-d,--duration", duration, "override the run time [s] (0 = until a signal)");
   app.add_option("--plots", plots_dir, "write plots of the run into this folder (simulated plant)");
+  app.add_option("--report-json", report_json,
+                 "write a JSON report of the run (events, exit, loop timing, driver counters) here");
   app.add_flag("--check", check_only, "validate the configuration and exit");
   app.add_flag("--no-telemetry", no_telemetry, "do not start DDS telemetry");
   CLI11_PARSE(app, argc, argv);
@@ -40,7 +42,11 @@ int main(int argc, char** argv) {
     return 0;
   }
   try {
-    const auto r = pedalwave::app::run_daemon(cfg, {.plots_dir = plots_dir, .telemetry = !no_telemetry, .print = true});
+    pedalwave::app::DaemonOptions opt;
+    opt.plots_dir = plots_dir;
+    opt.telemetry = !no_telemetry;
+    opt.report_json = report_json;
+    const auto r = pedalwave::app::run_daemon(cfg, opt);
     using pedalwave::runtime::ExitReason;
     return (r.run.reason == ExitReason::kFault) ? 3 : 0;
   } catch (const std::exception& e) {

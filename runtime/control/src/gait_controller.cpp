@@ -98,7 +98,7 @@ GaitController::GaitController(const GaitControllerParams& params)
   if (params.pd.placement == PdPlacement::kHost && !host_pd_.stable) {
     const auto i = static_cast<std::size_t>(worst_joint);
     std::string msg = "control: pd.placement = host is discretely unstable at period = " +
-                      detail::format_value(T) + " s for joint " + std::to_string(worst_joint) +
+                      detail::format_value(T) + " s for joint " + std::to_string(worst_joint + 1) +
                       ": " + describe(host_pd_, J_[i], K_[i], K_p_[i], K_D_[i], T) +
                       ". Fix: set pd.placement = module (the module applies the PD at its own "
                       "internal rate), or run the control loop at a rate of at least " +

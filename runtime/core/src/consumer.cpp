@@ -19,18 +19,28 @@ struct TelemetryConsumer::Log {
   std::shared_ptr<spdlog::async_logger> logger;
 };
 
-std::string format_summary(const RunResult& r, const LoopMetrics& m) {
+std::string format_summary(const RunResult& r, const LoopMetrics& m, const EventLog& events) {
   std::ostringstream os;
   os << "run ended: " << to_string(r.reason) << " (final mode " << to_string(r.final_mode);
   if (r.reason == ExitReason::kFault) {
-    os << ", fault " << to_string(r.fault) << ", joint " << r.fault_joint;
+    os << ", fault " << to_string(r.fault);
+    if (r.fault_joint >= 0) os << " on joint " << r.fault_joint + 1;
   }
   if (r.reason == ExitReason::kSignal) os << ", signal " << r.signal;
-  os << ")\n"
-     << "cycles " << r.cycles << ", overruns " << r.overruns << " (" << r.skipped_periods
+  os << ")\n";
+  const std::vector<RunEvent> all = events.events();
+  std::size_t listed = 0;
+  for (const RunEvent& e : all) listed += e.listed ? 1 : 0;
+  os << "events: " << listed << " faults, warnings, holds and operator commands (of " << events.total()
+     << " events";
+  if (events.dropped() > 0) os << ", " << events.dropped() << " not kept";
+  os << ")\n";
+  for (const RunEvent& e : all)
+    if (e.listed) os << "  " << format_event(e, events) << "\n";
+  os << "cycles " << r.cycles << ", overruns " << r.overruns << " (" << r.skipped_periods
      << " periods skipped), ring drops: cycle " << r.cycle_drops << ", event " << r.event_drops << "\n"
      << "rt setup: " << r.rt.describe() << "\n"
-     << format_table(m);
+     << format_table(m) << format_exit_line(r, events);
   return os.str();
 }
 
@@ -81,7 +91,7 @@ std::string TelemetryConsumer::stop(const RunResult* result) {
   }
   std::string text;
   if (result) {
-    text = format_summary(*result, rt_.metrics());
+    text = format_summary(*result, rt_.metrics(), event_log_);
     log_->logger->info("summary\n{}", text);
   }
   log_->logger->flush();
@@ -101,6 +111,7 @@ bool TelemetryConsumer::drain_once() {
   while (rt_.event_ring().pop(e)) {
     any = true;
     events_.fetch_add(1, std::memory_order_relaxed);
+    event_log_.add(e, rt_.config().reactions);
     if (cfg_.log_events) log_event(e);
     for (auto* s : sinks_) {
       try {
@@ -129,21 +140,15 @@ bool TelemetryConsumer::drain_once() {
 }
 
 void TelemetryConsumer::log_event(const EventSample& e) {
-  const char* text = e.text.data();
-  const double t = static_cast<double>(e.t_ns) * 1e-9;
   auto level = spdlog::level::info;
   if (e.severity == Severity::kWarning || e.severity == Severity::kDegrade) level = spdlog::level::warn;
   if (e.severity == Severity::kStop || e.to == Mode::kFault) level = spdlog::level::err;
-  if (e.from != e.to) {
-    log_->logger->log(level, "[cycle {} t={:.6f}] mode {} -> {}: {}", e.seq, t, to_string(e.from),
-                      to_string(e.to), text);
-  } else if (e.fault != FaultClass::kNone) {
-    log_->logger->log(level, "[cycle {} t={:.6f}] fault {} joint {}: {} (value {:g}, threshold {:g})",
-                      e.seq, t, to_string(e.fault), e.joint, text, e.value, e.threshold);
-  } else {
-    log_->logger->log(level, "[cycle {} t={:.6f}] {} ({}): {}", e.seq, t, to_string(e.to),
-                      e.value, text);
-  }
+  RunEvent r;
+  r.sample = e;
+  r.kind = classify(e);
+  r.reaction = reaction_of(e, rt_.config().reactions);
+  // Same line as the summary's (1-based joint), times since the run start.
+  log_->logger->log(level, "{}", format_event(r, event_log_));
 }
 
 }  // namespace pedalwave::runtime

@@ -38,6 +38,16 @@ const char* to_string(FaultClass f) noexcept {
   return "?";
 }
 
+const char* to_string(Severity s) noexcept {
+  switch (s) {
+    case Severity::kInfo: return "info";
+    case Severity::kWarning: return "warning";
+    case Severity::kDegrade: return "degrade";
+    case Severity::kStop: return "stop";
+  }
+  return "?";
+}
+
 const char* to_string(TransitionStatus s) noexcept {
   switch (s) {
     case TransitionStatus::kOk: return "ok";

@@ -24,6 +24,10 @@ struct Style {
   const char* eol() const { return on ? "\x1b[K\n" : "\n"; }
 };
 
+// A joint as printed: 1-based ("joint 1" = the first joint = CAN node / DYNAMIXEL id 1) from the
+// messages' 0-based field; "none" for −1.
+std::string joint_name(int joint0) { return joint0 >= 0 ? std::to_string(joint0 + 1) : "none"; }
+
 // A bar of `width` cells for |v| / full_scale, '#' filled.
 std::string bar(double v, double full_scale, int width) {
   const double frac = full_scale > 0.0 ? std::min(std::fabs(v) / full_scale, 1.0) : 0.0;
@@ -116,7 +120,7 @@ void MonitorState::on_fault_event(const FaultEventMsg& m, const MessageInfo& i) 
   faults_.push_back(m);
   while (faults_.size() > kMaxFaults) faults_.pop_front();
   notice(i.recv_ns, fmt::format("FAULT {} ({}) joint {}: value {:.4g} vs threshold {:.4g}{}{}",
-                                m.class_name, m.severity_name, m.joint, m.value, m.threshold,
+                                m.class_name, m.severity_name, joint_name(m.joint), m.value, m.threshold,
                                 m.text.empty() ? "" : ": ", m.text));
 }
 
@@ -207,7 +211,7 @@ std::string MonitorState::render(std::int64_t now_ns, bool ansi) const {
       line(fmt::format("faults: {}none{}", st.green(), st.reset()));
     } else {
       line(fmt::format("faults: {}{}{}  isolated joint {}", st.red(), names, st.reset(),
-                       observer_->fault_joint));
+                       joint_name(observer_->fault_joint)));
     }
   }
   if (timing_) {
@@ -235,7 +239,7 @@ std::string MonitorState::render(std::int64_t now_ns, bool ansi) const {
       const double ext = observer_ ? at(observer_->tau_ext, j) : std::nan("");
       const bool isolated = observer_ && observer_->fault_joint == static_cast<int>(j);
       line(fmt::format("{}{:>5}{}  {:+9.4f}  {:+9.4f} {}  {:+9.4f} {}  {:+9.4f}",
-                       isolated ? st.red() : "", j, isolated ? st.reset() : "",
+                       isolated ? st.red() : "", j + 1, isolated ? st.reset() : "",
                        at(joint_->beta, j), at(joint_->tau_sea, j),
                        bar(at(joint_->tau_sea, j), tau_scale, 12), res,
                        bar(res, res_scale, 12), ext));
@@ -248,7 +252,7 @@ std::string MonitorState::render(std::int64_t now_ns, bool ansi) const {
     for (const auto& f : faults_) {
       line(fmt::format("  seq {:>9}  {}{:<17}{} {:<8} joint {:>3}  value {:.4g} / threshold "
                        "{:.4g}  {}",
-                       f.seq, st.red(), f.class_name, st.reset(), f.severity_name, f.joint,
+                       f.seq, st.red(), f.class_name, st.reset(), f.severity_name, joint_name(f.joint),
                        f.value, f.threshold, f.text));
     }
   }

@@ -1,7 +1,8 @@
 // The non-real-time side of the hand-off: one thread that drains the runtime's cycle and event
 // rings, calls every TelemetrySink, and logs events through an spdlog asynchronous logger. It
 // never blocks the producer (the rings are wait-free; a slow sink only makes the ring drop and
-// count). Sinks are called from this thread only, in ring order.
+// count). Sinks are called from this thread only, in ring order. Every event it drains also goes
+// into a bounded EventLog (run_events.hpp) for the end-of-run summary and report.
 #pragma once
 
 #include <atomic>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "pedalwave/runtime/histogram.hpp"
+#include "pedalwave/runtime/run_events.hpp"
 #include "pedalwave/runtime/runtime.hpp"
 #include "pedalwave/runtime/telemetry_sink.hpp"
 
@@ -24,8 +26,11 @@ struct ConsumerConfig {
   bool log_events = true;                     // log every EventSample (info/warn/error by severity)
 };
 
-// "cycles 12000, overruns 3 (5 periods skipped), ring drops: cycle 0, event 0" + format_table().
-std::string format_summary(const RunResult& r, const LoopMetrics& m);
+// "run ended: cycle_limit (final mode SAFE_STOP)", then every listed event of the run (faults,
+// warnings, holds, operator commands, e-stop; one format_event() line each, with the count of
+// events not kept), "cycles 12000, overruns 3 (5 periods skipped), ring drops: cycle 0, event 0",
+// the RT setup, format_table(), and last format_exit_line().
+std::string format_summary(const RunResult& r, const LoopMetrics& m, const EventLog& events);
 
 class TelemetryConsumer {
  public:
@@ -45,6 +50,8 @@ class TelemetryConsumer {
   std::uint64_t cycles_consumed() const noexcept { return cycles_.load(std::memory_order_relaxed); }
   std::uint64_t events_consumed() const noexcept { return events_.load(std::memory_order_relaxed); }
   std::uint64_t sink_errors() const noexcept { return sink_errors_.load(std::memory_order_relaxed); }
+  // Every event drained so far, bounded (read after stop(), never while the thread runs).
+  const EventLog& events() const noexcept { return event_log_; }
 
  private:
   void loop();
@@ -56,6 +63,7 @@ class TelemetryConsumer {
   std::vector<TelemetrySink*> sinks_;
   ConsumerConfig cfg_;
   std::unique_ptr<Log> log_;
+  EventLog event_log_;
   std::thread thread_;
   std::atomic<bool> running_{false};
   std::atomic<std::uint64_t> cycles_{0};

@@ -40,7 +40,11 @@ class LatencyHistogram {
   // q in [0, 1]. 0 when empty [ns].
   std::int64_t percentile(double q) const noexcept;
 
-  // Bin index of a value, and the [lower, upper) edges of a bin (upper of overflow = max()).
+  // Samples in one bin, 0 … kBins − 1 (the last is the overflow bin) [-].
+  std::uint64_t bin_count(std::size_t bin) const noexcept { return bin < kBins ? bins_[bin] : 0; }
+
+  // Bin index of a value, and the [lower, upper) edges of a bin (upper of overflow = INT64_MAX;
+  // the exact largest value in it is max()).
   static std::size_t bin_of(std::int64_t ns) noexcept;
   static std::int64_t bin_lower(std::size_t bin) noexcept;
   static std::int64_t bin_upper(std::size_t bin) noexcept;

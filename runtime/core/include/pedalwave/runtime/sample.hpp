@@ -47,6 +47,7 @@ enum class FaultClass : std::uint8_t {
 const char* to_string(FaultClass f) noexcept;
 
 enum class Severity : std::uint8_t { kInfo = 0, kWarning, kDegrade, kStop };
+const char* to_string(Severity s) noexcept;  // "info", "warning", "degrade", "stop"
 
 // One cycle of state, published at the loop rate (decimated by telemetry).
 struct CycleSample {
@@ -70,7 +71,7 @@ struct CycleSample {
   std::array<double, kMaxJoints> tau_ext{};     // external joint-torque estimate [N·m]
   std::array<double, 6> body{};                 // predicted θ_N, p_x, p_z [rad, m, m] and rates
   std::uint32_t fault_flags = 0;                // bit (1 << FaultClass)
-  std::int16_t fault_joint = -1;                // isolated joint (0-based), −1 none
+  std::int16_t fault_joint = -1;                // isolated joint (0-based data field), −1 none
   double forward_speed = 0.0;                   // estimated forward speed [m/s]
   // Loop timing
   std::int32_t wake_latency_ns = 0;             // actual wake-up − deadline [ns]
@@ -87,7 +88,7 @@ struct EventSample {
   Mode from = Mode::kUnconfigured, to = Mode::kUnconfigured;
   FaultClass fault = FaultClass::kNone;
   Severity severity = Severity::kInfo;
-  std::int16_t joint = -1;             // 0-based joint, −1 none
+  std::int16_t joint = -1;             // 0-based joint (data field; texts say "joint joint+1"), −1 none
   double value = 0.0;                  // evidence: residual / measured value
   double threshold = 0.0;              // evidence: threshold crossed
   std::array<char, 96> text{};         // short, NUL-terminated reason

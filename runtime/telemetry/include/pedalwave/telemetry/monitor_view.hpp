@@ -3,7 +3,8 @@
 // refreshes in place). Tracks silence (SilenceTracker on all high-rate topics), restarts (the
 // joint_state publisher changed or seq went backwards), per-topic receive rates and a log of
 // notices (silent / back / restart / fault / mode / command ack).
-// Times are the monitor's CLOCK_MONOTONIC [ns], passed in.
+// Times are the monitor's CLOCK_MONOTONIC [ns], passed in. Joints are printed 1-based ("joint 1" =
+// the first joint = CAN node / DYNAMIXEL id 1); the messages' joint fields are 0-based.
 #pragma once
 
 #include <cstdint>

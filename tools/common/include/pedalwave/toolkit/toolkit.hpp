@@ -2,6 +2,7 @@
 #pragma once
 
 #include "pedalwave/toolkit/color.hpp"
+#include "pedalwave/toolkit/cpu_load.hpp"
 #include "pedalwave/toolkit/csv.hpp"
 #include "pedalwave/toolkit/figure.hpp"
 #include "pedalwave/toolkit/json.hpp"

@@ -1,6 +1,7 @@
 // The CPU load generator (tools/common/src/cpu_load.cpp): its children exist and spin while it
 // runs, consume CPU time, and are all gone (killed and reaped) after stop() or destruction.
 #include <gtest/gtest.h>
+#include <signal.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 
@@ -70,4 +71,18 @@ TEST(CpuLoad, RefusesBadArguments) {
   load.start(0);
   EXPECT_FALSE(load.running());
   EXPECT_FALSE(tk::process_alive(0x3fffffff));
+}
+
+TEST(CpuLoad, ChildrenEndOnSigintAndAreStillReaped) {
+  // A terminal's Ctrl-C reaches the children too (same process group): they end at once instead of
+  // running the parent's handler, and stop() still reaps them.
+  tk::CpuLoad load;
+  load.start(1);
+  const pid_t pid = load.pids().at(0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  ASSERT_EQ(::kill(pid, SIGINT), 0);
+  for (int k = 0; k < 200 && tk::process_alive(pid); ++k) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_FALSE(tk::process_alive(pid));
+  load.stop();
+  EXPECT_EQ(::waitpid(pid, nullptr, WNOHANG), -1) << "reaped";
 }

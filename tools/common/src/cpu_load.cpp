@@ -29,9 +29,14 @@ std::int64_t mono_ns() {
 }
 
 // The child's whole life: async-signal-safe calls only (it was forked, maybe from a threaded
-// process). Busy on arithmetic the compiler cannot drop, then sleeps the rest of the period.
+// process). SIGINT/SIGTERM back to their default action (end the child), not the parent's
+// handlers; busy on arithmetic the compiler cannot drop, then asleep the rest of the period.
 [[noreturn]] void spin(std::int64_t busy_ns, pid_t parent) {
   if (::prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || ::getppid() != parent) ::_exit(0);
+  struct sigaction dfl {};
+  dfl.sa_handler = SIG_DFL;
+  ::sigaction(SIGINT, &dfl, nullptr);
+  ::sigaction(SIGTERM, &dfl, nullptr);
   double x = 1.0;
   for (;;) {
     const std::int64_t t0 = mono_ns();

@@ -10,7 +10,8 @@
 // Children are never left behind: stop() kills and reaps every child it started (the destructor
 // calls it), and each child asks the kernel for SIGKILL when the thread that started it exits
 // (PR_SET_PDEATHSIG), so a parent killed with SIGKILL does not leave them spinning either. A child
-// runs only async-signal-safe code after fork, so starting from a multi-threaded process is safe.
+// runs only async-signal-safe code after fork, so starting from a multi-threaded process is safe;
+// its SIGINT and SIGTERM take their default action (a Ctrl-C ends it), not the parent's handlers.
 // Not thread-safe itself; a process installs its own SIGINT/SIGTERM handling and calls stop().
 #pragma once
 

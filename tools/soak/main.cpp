@@ -10,6 +10,7 @@
 // no report, interrupted); 2 bad option, file or configuration (the message names it).
 #include <CLI/CLI.hpp>
 #include <fcntl.h>
+#include <sched.h>
 #include <signal.h>
 #include <sys/prctl.h>
 #include <sys/utsname.h>
@@ -24,6 +25,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
@@ -85,7 +87,10 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 // Starts `argv` with stdout and stderr into `log`, stdin from /dev/null, in its own process group
 // (a terminal's Ctrl-C reaches the soak only, which then stops everything in order), and with
 // SIGINT from the kernel if the soak dies (the runtime then still ends with its safe stop).
-pid_t spawn(const std::vector<std::string>& args, const fs::path& log) {
+// fifo_priority > 0: under SCHED_FIFO at that priority (its threads inherit it); when that is not
+// granted the child says so in its log (kFifoRefused) and runs at normal priority.
+constexpr const char* kFifoRefused = "pedalwave_soak: SCHED_FIFO not granted";
+pid_t spawn(const std::vector<std::string>& args, const fs::path& log, int fifo_priority = 0) {
   std::vector<std::string> a = args;
   std::vector<char*> argv;
   for (auto& s : a) argv.push_back(s.data());
@@ -103,6 +108,15 @@ pid_t spawn(const std::vector<std::string>& args, const fs::path& log) {
     ::dup2(in, STDIN_FILENO);
     ::dup2(out, STDOUT_FILENO);
     ::dup2(out, STDERR_FILENO);
+    if (fifo_priority > 0) {
+      sched_param sp{};
+      sp.sched_priority = fifo_priority;
+      if (::sched_setscheduler(0, SCHED_FIFO, &sp) != 0) {
+        const char* msg = kFifoRefused;
+        (void)!::write(STDERR_FILENO, msg, std::strlen(msg));
+        (void)!::write(STDERR_FILENO, "\n", 1);
+      }
+    }
     ::signal(SIGINT, SIG_DFL);
     ::signal(SIGTERM, SIG_DFL);
     ::execv(argv[0], argv.data());
@@ -214,6 +228,7 @@ struct Options {
   std::string runtime, vrobot;
   std::string telemetry = "on";
   double sample_period = 10.0;
+  int robot_priority = 70;
   bool no_plot = false;
 };
 
@@ -252,12 +267,15 @@ int run(const Options& opt) {
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  std::printf("pedalwave_soak: %g s, load %d × duty %g, telemetry %s, output %s\n  runtime       %s\n  virtual robot %s\n",
-              opt.duration, opt.load, opt.duty, opt.telemetry.c_str(), out.c_str(), runtime_exe.c_str(), vrobot_exe.c_str());
+  std::printf("pedalwave_soak: %g s, load %d × duty %g, telemetry %s, output %s\n  runtime       %s\n"
+              "  virtual robot %s (%s)\n",
+              opt.duration, opt.load, opt.duty, opt.telemetry.c_str(), out.c_str(), runtime_exe.c_str(), vrobot_exe.c_str(),
+              opt.robot_priority > 0 ? ("SCHED_FIFO " + std::to_string(opt.robot_priority)).c_str() : "normal priority");
   std::fflush(stdout);
 
   // ---- the virtual robot, then its pty link ----
-  const pid_t vr = spawn({vrobot_exe.string(), "--scene", opt.scene, "--pty", "--link", link.string()}, vr_log);
+  const pid_t vr =
+      spawn({vrobot_exe.string(), "--scene", opt.scene, "--pty", "--link", link.string()}, vr_log, opt.robot_priority);
   g_children[1] = vr;
   for (const auto t0 = Clock::now(); !fs::exists(link);) {
     if (auto c = wait_for(vr, 0.05)) {
@@ -271,6 +289,10 @@ int run(const Options& opt) {
       return sk::kExitFail;
     }
   }
+
+  if (read_text(vr_log).find(kFifoRefused) != std::string::npos)
+    std::printf("warning: the virtual robot runs at normal priority (SCHED_FIFO %d not granted: run as root or "
+                "with CAP_SYS_NICE, or --robot-priority 0)\n", opt.robot_priority);
 
   // ---- the load, then the runtime ----
   tk::CpuLoad load;
@@ -387,6 +409,7 @@ int run(const Options& opt) {
                            .set("runtime", runtime_exe.string())
                            .set("virtual_robot", vrobot_exe.string())
                            .set("telemetry", opt.telemetry)
+                           .set("robot_priority", opt.robot_priority)
                            .set("sample_period_s", opt.sample_period));
   soak.set("load", Json::object()
                        .set("children", opt.load)
@@ -417,6 +440,7 @@ int run(const Options& opt) {
   std::printf("%s", sk::summary(soak).c_str());
   std::printf("\nwritten: %s, %s, %s, %s\n", (out / "soak.json").c_str(), (out / "memory.csv").c_str(), rt_log.c_str(),
               vr_log.c_str());
+  std::fflush(stdout);  // before the script's output
   if (!opt.no_plot) {
     const fs::path script = PEDALWAVE_SOAK_PLOT_SCRIPT;
     if (!fs::is_regular_file(script)) {
@@ -461,6 +485,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--sample-period", opt.sample_period, "memory sample and progress period [s]")
       ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--robot-priority", opt.robot_priority,
+                 "SCHED_FIFO priority of the virtual robot (it stands for the modules' own hardware, which the "
+                 "load does not share; below the runtime's); 0 = normal scheduling")
+      ->check(CLI::Range(0, 99))
       ->capture_default_str();
   app.add_flag("--no-plot", opt.no_plot, "do not draw soak.png");
   try {

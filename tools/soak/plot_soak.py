@@ -28,9 +28,12 @@ def main(soak_json, png):
     stages = [s for s in STAGES if (timing.get(s) or {}).get("bins")]
     memory = soak.get("memory") or {}
 
-    fig, axes = plt.subplots(1, len(stages) + 1, figsize=(4.2 * (len(stages) + 1), 3.6), squeeze=False)
-    axes = axes[0]
-    for ax, name in zip(axes, stages):
+    # Top row: one histogram per stage; bottom row: memory over the whole width.
+    cols = max(1, len(stages))
+    fig = plt.figure(figsize=(4.0 * max(cols, 2), 7.0))
+    grid = fig.add_gridspec(2, cols)
+    for k, name in enumerate(stages):
+        ax = fig.add_subplot(grid[0, k])
         s = timing[name]
         lo = [b[0] for b in s["bins"]]
         width = [b[1] - b[0] for b in s["bins"]]
@@ -44,7 +47,7 @@ def main(soak_json, png):
         if used:
             ax.set_xlim(used[0][0], used[-1][1])
 
-    ax = axes[-1]
+    ax = fig.add_subplot(grid[1, :])
     for proc, color in (("runtime", "tab:red"), ("virtual_robot", "tab:green")):
         rows = memory.get(proc) or []
         if not rows:

@@ -1,0 +1,76 @@
+#!/usr/bin/python3
+"""Figures of a soak run (pedalwave_soak's soak.json): the timing histograms of the runtime's
+report (wake latency, read, observe, control; log count) and the memory of the runtime and the
+virtual robot over time (VmRSS, VmHWM).
+
+    /usr/bin/python3 tools/soak/plot_soak.py out/soak/soak.json out/soak/soak.png
+
+Skips with a message (exit 0) when matplotlib is not installed."""
+import json
+import sys
+
+try:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+except ImportError:
+    print("plot_soak.py: matplotlib is not installed (apt-get install python3-matplotlib): no plot")
+    sys.exit(0)
+
+STAGES = ["wake", "read", "observe", "control"]
+
+
+def main(soak_json, png):
+    with open(soak_json) as f:
+        soak = json.load(f)
+    report = soak.get("report") or {}
+    timing = report.get("timing_us") or {}
+    stages = [s for s in STAGES if (timing.get(s) or {}).get("bins")]
+    memory = soak.get("memory") or {}
+
+    # Top row: one histogram per stage; bottom row: memory over the whole width.
+    cols = max(1, len(stages))
+    fig = plt.figure(figsize=(4.0 * max(cols, 2), 7.0))
+    grid = fig.add_gridspec(2, cols)
+    for k, name in enumerate(stages):
+        ax = fig.add_subplot(grid[0, k])
+        s = timing[name]
+        lo = [b[0] for b in s["bins"]]
+        width = [b[1] - b[0] for b in s["bins"]]
+        count = [b[2] for b in s["bins"]]
+        ax.bar(lo, count, width=width, align="edge", color="tab:blue", edgecolor="none")
+        ax.set_yscale("log")
+        ax.set_xlabel(name + " [µs]")
+        ax.set_ylabel("cycles")
+        ax.set_title("%s: p50 %s, p99 %s, max %s µs" % (name, s.get("p50"), s.get("p99"), s.get("max")), fontsize=9)
+        used = [b for b in s["bins"] if b[2] > 0]
+        if used:
+            ax.set_xlim(used[0][0], used[-1][1])
+
+    ax = fig.add_subplot(grid[1, :])
+    for proc, color in (("runtime", "tab:red"), ("virtual_robot", "tab:green")):
+        rows = memory.get(proc) or []
+        if not rows:
+            continue
+        t = [r["t_s"] for r in rows]
+        ax.plot(t, [r["rss_kB"] / 1024 for r in rows], "-o", ms=3, color=color, label=proc + " RSS")
+        ax.plot(t, [r["hwm_kB"] / 1024 for r in rows], "--", color=color, label=proc + " peak")
+    ax.set_xlabel("time since the runtime started [s]")
+    ax.set_ylabel("memory [MB]")
+    ax.set_ylim(bottom=0)
+    ax.set_title("memory (/proc/<pid>/status)", fontsize=9)
+    ax.legend(fontsize=7)
+    settings = soak.get("settings") or {}
+    load = soak.get("load") or {}
+    fig.suptitle("soak %s s, load %s × %s, telemetry %s" % (settings.get("duration_s"), load.get("children"),
+                                                          load.get("duty"), settings.get("telemetry")), fontsize=10)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    print("plot_soak.py: wrote", png)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 3:
+        print("usage: plot_soak.py SOAK_JSON PNG", file=sys.stderr)
+        sys.exit(2)
+    main(sys.argv[1], sys.argv[2])

@@ -163,7 +163,7 @@ void read_telemetry(const Reader& r, DaemonConfig& c) {
 //                    1.25 · window + 0.2 ms, within [0.5, 0.9] of the period);
 //   stale_timeout  = max(0.1 s, 20 periods): well above a loaded host's read tail (tens of ms
 //                    measured by the soak tool), far below a walking robot's time to harm itself;
-//   module silent  = a bus: max(3, 20 ms of cycles) consecutive missing replies (a late reply is
+//   module silent  = a bus: max(3, 50 ms of cycles) consecutive missing replies (a late reply is
 //                    a missing one); the in-process plant: 3 (it never drops a reply).
 void derive_timeouts(const Reader& r, DaemonConfig& c) {
   runtime::RuntimeConfig& rc = c.runtime;
@@ -203,7 +203,7 @@ void derive_timeouts(const Reader& r, DaemonConfig& c) {
                 given_stale ? "given" : "derived: max(0.1 s, 20 periods)");
   note += buf;
   c.observer_missing_cycles =
-      d.kind == DriverKind::kSim ? 3 : std::max(3, static_cast<int>(std::ceil(0.02 * rc.rt.rate_hz)));
+      d.kind == DriverKind::kSim ? 3 : std::max(3, static_cast<int>(std::ceil(0.05 * rc.rt.rate_hz)));
   std::snprintf(buf, sizeof buf, ", module silent after %d missing replies (%.0f ms)",
                 c.observer_missing_cycles, 1e3 * c.observer_missing_cycles * period);
   note += buf;

@@ -187,12 +187,16 @@ void ModuleBank::latch(int j, double tau, double beta_ref, double beta_dot_ref, 
   last_cmd_ns_[ju] = t_ns;
   have_cmd_[ju] = true;
   cmd_off_[ju] = torque_off;
-  off_[ju] = torque_off;
   applied_ns_[ju] = t_ns;
   applied_tag_[ju] = tag;
   no_command_[ju] = false;
   stats_.commands.fetch_add(1, std::memory_order_relaxed);
-  if (torque_off) stats_.torque_off_cmds.fetch_add(1, std::memory_order_relaxed);
+  if (torque_off) {
+    stats_.torque_off_cmds.fetch_add(1, std::memory_order_relaxed);
+    std::uint64_t none = 0;
+    if (!off_[ju]) stats_.first_off_sync.compare_exchange_strong(none, syncs_, std::memory_order_relaxed);
+  }
+  off_[ju] = torque_off;
   apply_now();
 }
 

@@ -2,7 +2,7 @@
 """Checks a pedalwave_runtime --report-json file against the report schema (tools/runtime/run_report.hpp).
 
 Usage: check_run_report.py REPORT.json   — exit 0 and "ok" when every key is there with its type.
-The schema names "driver" twice at the top level (the bus kind, then the counters): both are checked.
+"driver" is the bus kind, "driver_counters" its counters.
 """
 import json
 import sys
@@ -13,7 +13,9 @@ NUM = (int, float)
 def pairs_hook(pairs):
     d = {}
     for k, v in pairs:
-        d[k + "#2" if k in d else k] = v
+        if k in d:
+            raise SystemExit(f"duplicate key {k!r}")
+        d[k] = v
     return d
 
 
@@ -76,7 +78,7 @@ def main(path):
             total += b[2]
         if total != t["count"]:
             raise SystemExit(f"{h}.bins: counts sum to {total}, count = {t['count']}")
-    counters = need(r, "driver#2", dict, "report (second 'driver', the counters)")
+    counters = need(r, "driver_counters", dict, "report")
     for k in ("frames_tx", "frames_rx", "missing", "late", "duplicate", "out_of_order", "checksum",
               "malformed", "bus_errors", "tx_dropped", "rx_dropped"):
         need(counters, k, int, "driver")

@@ -138,7 +138,7 @@ TEST(Daemon, WarningsAndHoldsAreReportedNotNoFault) {
                           "\"final_mode\":\"SAFE_STOP\"", "\"fault\":\"none\"", "\"joint\":null",
                           "\"signal\":0", "\"events\":[", "\"events_dropped\":0", "\"loop\":{",
                           "\"max_skipped\":", "\"timing_us\":{", "\"wake\":{", "\"p999\":",
-                          "\"bins\":[[", "\"driver\":{\"frames_tx\":", "\"rx_dropped\":",
+                          "\"bins\":[[", "\"driver_counters\":{\"frames_tx\":", "\"rx_dropped\":",
                           "\"settings\":{", "\"stale_timeout_s\":", "\"observer\":true",
                           "\"telemetry\":false", "\"kind\":\"warning\",\"class\":\"saturation"
                           "\",\"severity\":\"warning\",\"joint\":2",

@@ -333,3 +333,65 @@ TEST(CanProtocol, CounterWrapAround) {
     EXPECT_EQ(d.counter, c & 0x0F);
   }
 }
+
+// The timing record (PROTOCOL.md §1.1): classic timing frame and the 16-byte FD feedback frame.
+TEST(CanTiming, TimingFrameRoundTripAndChecksum) {
+  namespace can = pedalwave::drivers::can;
+  namespace wire = pedalwave::drivers::wire;
+  const wire::ModuleTiming t{0xFEDCBA98u, 1234, false, 0x0B};
+  can_frame f{};
+  ASSERT_EQ(can::encode_timing(5, t, 0x27, f), can::CodecStatus::kOk);
+  EXPECT_EQ(f.can_id, can::kTimingBase + 5);
+  int node = 0;
+  wire::ModuleTiming back{};
+  std::uint8_t echo = 0;
+  ASSERT_EQ(can::decode_timing(f, node, back, echo), can::CodecStatus::kOk);
+  EXPECT_EQ(node, 5);
+  EXPECT_EQ(back.sample_us, t.sample_us);
+  EXPECT_EQ(back.applied_age_us, 1234);
+  EXPECT_FALSE(back.no_command);
+  EXPECT_EQ(back.applied_tag, 0x0B);
+  EXPECT_EQ(echo, 0x07);  // c mod 16
+  // "no command" and a saturated age survive; any flipped bit fails the CRC.
+  const wire::ModuleTiming off{7, 60000, true, 3};
+  ASSERT_EQ(can::encode_timing(1, off, 0, f), can::CodecStatus::kOk);
+  ASSERT_EQ(can::decode_timing(f, node, back, echo), can::CodecStatus::kOk);
+  EXPECT_TRUE(back.no_command);
+  EXPECT_EQ(back.applied_age_us, wire::kAgeMaxUs);
+  for (int bit = 0; bit < 56; ++bit) {
+    can_frame g = f;
+    g.data[bit / 8] ^= static_cast<std::uint8_t>(1u << (bit % 8));
+    EXPECT_EQ(can::decode_timing(g, node, back, echo), can::CodecStatus::kChecksum) << bit;
+  }
+}
+
+TEST(CanTiming, FdFeedbackCarriesTheTimingRecord) {
+  namespace can = pedalwave::drivers::can;
+  namespace wire = pedalwave::drivers::wire;
+  const can::ModuleFeedback fb{0.5, -1.25, 0.01, pedalwave::drivers::kStatusSaturated, 9};
+  const wire::ModuleTiming t{123456789u, 800, false, 0xC3};
+  canfd_frame f{};
+  ASSERT_EQ(can::encode_feedback_fd(3, fb, t, f), can::CodecStatus::kOk);
+  EXPECT_EQ(f.len, can::kFdFeedbackLen);
+  EXPECT_EQ(f.can_id, can::kFeedbackBase + 3);
+  int node = 0;
+  can::ModuleFeedback b{};
+  wire::ModuleTiming bt{};
+  ASSERT_EQ(can::decode_feedback_fd(f, node, b, bt), can::CodecStatus::kOk);
+  EXPECT_EQ(node, 3);
+  EXPECT_NEAR(b.beta, 0.5, 0.5e-4);
+  EXPECT_NEAR(b.beta_dot, -1.25, 0.5e-3);
+  EXPECT_NEAR(b.deflection, 0.01, 1e-5);
+  EXPECT_EQ(b.counter, 9);
+  EXPECT_EQ(bt.sample_us, t.sample_us);
+  EXPECT_EQ(bt.applied_age_us, 800);
+  EXPECT_EQ(bt.applied_tag, 0xC3);
+  for (int bit = 0; bit < 14 * 8; ++bit) {
+    canfd_frame g = f;
+    g.data[bit / 8] ^= static_cast<std::uint8_t>(1u << (bit % 8));
+    EXPECT_EQ(can::decode_feedback_fd(g, node, b, bt), can::CodecStatus::kChecksum) << bit;
+  }
+  canfd_frame shorter = f;
+  shorter.len = 12;
+  EXPECT_EQ(can::decode_feedback_fd(shorter, node, b, bt), can::CodecStatus::kWrongLength);
+}

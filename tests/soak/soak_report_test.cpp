@@ -36,7 +36,7 @@ const char* kReport = R"({
     "control": {"count": 4000, "min": 1, "p50": 2, "p90": 3, "p99": 4, "p999": 5, "max": 6, "overflows": 0,
                 "bins": [[0, 10, 4000]]}
   },
-  "driver": {"frames_tx": 12005, "frames_rx": 20000, "missing": 0, "late": 0, "duplicate": 0, "out_of_order": 0,
+  "driver_counters": {"frames_tx": 12005, "frames_rx": 20000, "missing": 0, "late": 0, "duplicate": 0, "out_of_order": 0,
              "checksum": 0, "malformed": 0, "bus_errors": 0, "tx_dropped": 0, "rx_dropped": 0},
   "settings": {"stale_timeout_s": 0.02, "read_budget": 0.5, "observer": true, "telemetry": false}
 })";

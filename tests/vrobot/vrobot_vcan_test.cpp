@@ -25,6 +25,8 @@
 #include <string>
 #include <vector>
 
+#include "dds_domain_lease.hpp"
+#include "pedalwave/runtime/run_events.hpp"
 #include "walk_rig.hpp"
 
 using namespace pedalwave;
@@ -228,7 +230,7 @@ TEST(VrobotVcan, RuntimeWalksOverVcanAndCandumpSeesTheProtocol) {
 
   // The modules on one raw socket of vcan0, the runtime's driver on another (the real open()).
   vrobot::VirtualRobot robot(scene, vrobot::open_module_can_socket(kIf, false),
-                             test::robot_options(s, {}));
+                             test::robot_options(s, scene, {}));
   std::unique_ptr<drivers::SocketCanDriver> drv = drivers::SocketCanDriver::open(cfg.driver.can);
   const test::WalkResult r = test::run_walk(cfg, robot, *drv);
   send_marker(marker, kMarkerEnd);
@@ -295,6 +297,7 @@ TEST(VrobotVcan, RuntimeWalksOverVcanAndCandumpSeesTheProtocol) {
   std::array<std::vector<int>, 64> echoes;
   std::array<std::vector<std::size_t>, 64> syncs_before;
   int fb_total = 0, cmd_total = 0, off_cmds_running = 0, sync_steps_bad = 0, fb_torque_off = 0;
+  int timing_total = 0, timing_wrong_echo = 0, timing_no_cmd = 0;
   std::map<int, int> torque_off_nodes_after_last_sync;
   std::array<double, 64> beta_min{}, beta_max{};
   beta_min.fill(1e9);
@@ -344,6 +347,10 @@ TEST(VrobotVcan, RuntimeWalksOverVcanAndCandumpSeesTheProtocol) {
       if (off && i < last_sync_index) ++off_cmds_running;
       if (off && i > last_sync_index) ++torque_off_nodes_after_last_sync[node];
       EXPECT_EQ(f.data[6] >> 5, 0) << "reserved bits";
+    } else if (id > 0x380 && id <= 0x380u + J) {  // timing record (PROTOCOL.md §1.1)
+      ++timing_total;
+      if (nib != (cy.c & 0x0F)) ++timing_wrong_echo;
+      if (i < last_sync_index && cycles.size() > 10 && (u16(f.data, 4) & 0x8000)) ++timing_no_cmd;
     } else if (id > 0x300 && id <= 0x300u + J) {  // gains
       ++cy.gains;
       if (i < last_sync_index) {
@@ -367,6 +374,10 @@ TEST(VrobotVcan, RuntimeWalksOverVcanAndCandumpSeesTheProtocol) {
   // never before the SYNC. (When the answer arrives — before the host's deadline or after the
   // next SYNC — depends on the VM's emulated CPU: counted, not asserted.)
   EXPECT_EQ(fb_total, J * static_cast<int>(cycles.size()));
+  // Timing records: one per module and SYNC, echoing it; "no command" only before the first.
+  EXPECT_EQ(timing_total, J * static_cast<int>(cycles.size()));
+  EXPECT_EQ(timing_wrong_echo, 0);
+  EXPECT_EQ(timing_no_cmd, 0) << "a module reported no command while walking";
   for (int n = 1; n <= J; ++n) {
     const auto& e = echoes[static_cast<std::size_t>(n)];
     ASSERT_EQ(e.size(), cycles.size()) << "node " << n;
@@ -407,3 +418,125 @@ TEST(VrobotVcan, RuntimeWalksOverVcanAndCandumpSeesTheProtocol) {
     EXPECT_LT(range, 2.0) << "joint " << n;
   }
 }
+
+// The deployment path over the real SocketCAN (issue 12): the runtime daemon with its real
+// SocketCAN driver on vcan0, the modules on another raw socket of vcan0, SCHED_FIFO for both, the
+// observer ON and DDS telemetry ON (loopback inside the VM), the daemon's derived timeouts, 60 s:
+// no event of any class and a speed within 10 % of the in-process plant at the same rate. Then the
+// fault catalogue over the same bus: each fault detected and isolated on its joint.
+// The VM emulates the CPU (TCG): classic CAN at 100 Hz, the virtual robot's plant at h = 2.5e-4 s
+// (its module-PD integration error ≤ 0.01 N·m, a third of the residual threshold), the loop
+// pinned to CPU 0 (see above: vcan reorders a migrating sender's frames).
+namespace {
+test::WalkSetup vm_deployment(double duration, std::uint32_t domain) {
+  test::WalkSetup s;
+  s.transport = test::Transport::kCanClassic;
+  s.rate_hz = 100;
+  s.duration = duration;
+  s.stale_timeout = 0;
+  s.read_budget = 0;
+  s.command_timeout = 0.1;
+  s.observer = true;
+  s.priority = 80;
+  s.robot_priority = 70;
+  s.telemetry = true;
+  s.telemetry_domain = domain;
+  s.clock_drift_ppm = 30;
+  s.plant_max_step = 2.5e-4;
+  s.cpu = 0;
+  return s;
+}
+
+test::WalkResult walk_vcan(const test::WalkSetup& s, const model::Scene& scene) {
+  const config::DaemonConfig cfg = test::daemon_config(s, scene);
+  vrobot::VirtualRobotOptions vo = test::robot_options(s, scene, {});
+  vrobot::VirtualRobot robot(scene, vrobot::open_module_can_socket(kIf, false), vo);
+  std::unique_ptr<drivers::SocketCanDriver> drv = drivers::SocketCanDriver::open(cfg.driver.can);
+  return test::run_walk(cfg, robot, *drv, s.telemetry);
+}
+
+std::string listed_events(const test::WalkResult& r) {
+  std::string t;
+  for (const runtime::RunEvent& e : r.daemon.events)
+    if (e.listed) t += "  " + runtime::format_event_short(e, r.daemon.event_log) + "\n";
+  return t;
+}
+}  // namespace
+
+TEST(VrobotVcan, DeploymentWalks60sObserverAndTelemetryOn) {
+  if (!drivers::can_sockets_available())
+    VROBOT_SKIP_OR_FAIL("this kernel has no PF_CAN (socket(AF_CAN) fails)");
+  if (::if_nametoindex(kIf) == 0) VROBOT_SKIP_OR_FAIL("no vcan0");
+  test::DomainLease lease;
+  const model::Scene scene = config::load_scene(test::kScenePath);
+  const test::WalkSetup s = vm_deployment(60, lease.id());
+  test::WalkSetup ref = s;
+  ref.telemetry = false;
+  const test::WalkResult sim = test::walk_sim(ref, scene);
+  const test::WalkResult r = walk_vcan(s, scene);
+  std::printf("[vrobot-vcan] deployment: %s\n  speed %.4f cm/s (in-process %.4f cm/s, %+.2f %%), "
+              "%llu cycles, overruns %llu, host missing %llu, late %llu; %s; rt: %s\n%s%s",
+              r.daemon.exit_line.c_str(), 100 * r.speed, 100 * sim.speed,
+              100 * (r.speed - sim.speed) / sim.speed,
+              static_cast<unsigned long long>(r.daemon.run.cycles),
+              static_cast<unsigned long long>(r.daemon.run.overruns),
+              static_cast<unsigned long long>(r.counters.missing),
+              static_cast<unsigned long long>(r.counters.late), r.robot_thread.c_str(),
+              r.daemon.run.rt.describe().c_str(), r.report.c_str(), listed_events(r).c_str());
+  EXPECT_EQ(r.daemon.run.reason, runtime::ExitReason::kCycleLimit);
+  EXPECT_EQ(r.daemon.run.fault, runtime::FaultClass::kNone) << runtime::to_string(r.daemon.run.fault);
+  int listed = 0;
+  for (const runtime::RunEvent& e : r.daemon.events) listed += e.listed;
+  EXPECT_EQ(listed, 0) << "no fault, warning or hold:\n" << listed_events(r);
+  EXPECT_TRUE(r.daemon.telemetry_active);
+  EXPECT_EQ(r.daemon.run.cycles, 6000u);
+  EXPECT_TRUE(r.all_modules_off);
+  ASSERT_TRUE(std::isfinite(r.speed));
+  EXPECT_NEAR(r.speed, sim.speed, 0.10 * sim.speed);
+}
+
+struct VcanFault {
+  model::FaultType type;
+  int joint;
+  double value;
+  runtime::FaultClass expect;
+  const char* name;
+};
+void PrintTo(const VcanFault& f, std::ostream* os) { *os << f.name << " on joint " << f.joint + 1; }
+
+class VrobotVcanFaults : public ::testing::TestWithParam<VcanFault> {};
+
+TEST_P(VrobotVcanFaults, DetectedAndIsolatedOverVcan) {
+  if (!drivers::can_sockets_available())
+    VROBOT_SKIP_OR_FAIL("this kernel has no PF_CAN (socket(AF_CAN) fails)");
+  if (::if_nametoindex(kIf) == 0) VROBOT_SKIP_OR_FAIL("no vcan0");
+  const VcanFault f = GetParam();
+  test::DomainLease lease;
+  model::Scene scene = config::load_scene(test::kScenePath);
+  scene.faults.push_back({.type = f.type, .joint = f.joint, .t_start = 4.0, .value = f.value});
+  const test::WalkResult r = walk_vcan(vm_deployment(12, lease.id()), scene);
+  std::printf("[vrobot-vcan] %s on joint %d: %s\n%s", f.name, f.joint + 1,
+              r.daemon.exit_line.c_str(), listed_events(r).c_str());
+  const runtime::RunEvent* first = nullptr;
+  for (const runtime::RunEvent& e : r.daemon.events)
+    if (e.listed && e.sample.fault != runtime::FaultClass::kNone) {
+      first = &e;
+      break;
+    }
+  ASSERT_NE(first, nullptr) << f.name << ": not detected\n" << r.daemon.summary;
+  EXPECT_EQ(first->sample.fault, f.expect) << runtime::to_string(first->sample.fault);
+  EXPECT_EQ(first->sample.joint, f.joint);
+  EXPECT_GE(r.daemon.event_log.seconds(first->sample), 4.0) << "no verdict before the onset";
+  EXPECT_LE(r.daemon.event_log.seconds(first->sample), 8.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Vcan, VrobotVcanFaults,
+    ::testing::Values(
+        VcanFault{model::FaultType::kTorqueGain, 2, 0.0, runtime::FaultClass::kActuatorTorque, "torque_loss"},
+        VcanFault{model::FaultType::kSpringScale, 1, 0.2, runtime::FaultClass::kSpringBroken, "broken_spring"},
+        VcanFault{model::FaultType::kEncoderStuck, 3, 0.0, runtime::FaultClass::kEncoderStuck, "encoder_stuck"},
+        VcanFault{model::FaultType::kEncoderOffset, 0, 0.02, runtime::FaultClass::kEncoderJump, "encoder_jump"},
+        VcanFault{model::FaultType::kDeflectionBias, 2, 0.03, runtime::FaultClass::kDeflectionBias, "deflection_bias"},
+        VcanFault{model::FaultType::kModuleSilent, 4, 0.0, runtime::FaultClass::kModuleSilent, "silent_module"}),
+    [](const auto& param_info) { return std::string(param_info.param.name); });

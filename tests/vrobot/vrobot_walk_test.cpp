@@ -15,17 +15,11 @@
 //  the simulated plant's speed: well above the measured scatter, well below what a real fault
 //  does (a wrong sign, a joint not driven, a lost cycle in two: −20 … −100 %).
 //
-// The onboard observer (runtime/observer) is OFF in these runs, in the simulated plant's run and
-// the bus's alike (the configurations differ only in the driver section). Reason, measured: the
-// observer's momentum residual assumes the command of cycle k acts over [t_k, t_k+1] (ZOH, no
-// transport delay) and its consistency check assumes samples exactly one nominal period apart.
-// Over a bus the command acts one period later (PROTOCOL.md §2: applied at the next SYNC), and the
-// modules sample when the SYNC arrives (the host's wake-up jitter: milliseconds at load 12). With
-// the observer on, the deterministic bus model with the delay trips kSpringBroken at t = 2.5 s
-// (1 kHz) and kActuatorTorque → hold (250 Hz), and real-time runs trip kEncoderJump/kEncoderNoise;
-// without the delay (quantization only) it runs clean (BusModel.ObserverAcceptsTheWireQuantization).
-// Needed in the observer: a command-delay setting (1 cycle for socketcan/serial) and the measured
-// sample interval.
+// The onboard observer (runtime/observer) is ON in every run here, the simulated plant's and the
+// buses' alike: it integrates over the modules' measured sample times and splits each interval at
+// the command's application time (drivers/PROTOCOL.md §1.1, runtime/observer/README.md §1.1), so
+// the command's transport delay and the SYNC jitter are no longer model errors
+// (BusModel.ObserverIsExactOverTheModulesTiming shows the observer tripping without them).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -209,8 +203,9 @@ TEST(VirtualRobotFaults, FrameLossAndBitErrorsAreCountedAndTheRobotKeepsWalking)
   EXPECT_NEAR(bus.speed, sim.speed, kSpeedTolerance * sim.speed);
 }
 
-// A module that stops answering: its data goes stale, the runtime faults (kStaleData on that
-// joint) and stops safely — and the torque-off reaches every module, the silent one included.
+// A module that stops answering: the observer isolates it (kModuleSilent on that joint after
+// 50 ms of missing replies, before the runtime's stale_timeout) and the runtime stops safely —
+// and the torque-off reaches every module, the silent one included.
 class SilentModule : public ::testing::TestWithParam<Transport> {};
 
 TEST_P(SilentModule, LeadsToTheStaleDataFaultAndASafeStop) {
@@ -230,7 +225,7 @@ TEST_P(SilentModule, LeadsToTheStaleDataFaultAndASafeStop) {
               runtime::to_string(bus.daemon.run.reason), runtime::to_string(bus.daemon.run.fault),
               bus.daemon.run.fault_joint + 1);
   EXPECT_EQ(bus.daemon.run.reason, runtime::ExitReason::kFault);
-  EXPECT_EQ(bus.daemon.run.fault, runtime::FaultClass::kStaleData);
+  EXPECT_EQ(bus.daemon.run.fault, runtime::FaultClass::kModuleSilent);
   EXPECT_EQ(bus.daemon.run.fault_joint, 2);
   EXPECT_EQ(bus.daemon.run.final_mode, runtime::Mode::kSafeStop);
   // Not before the module went silent; within stale_timeout of loop time after it (fewer cycles

@@ -66,13 +66,13 @@ struct WalkSetup {
   double rate_hz = 1000;       // loop rate [Hz]
   double duration = 12;        // run time = loop cycles / rate [s]
   double stale_timeout = 0.2;  // runtime's stale-data limit [s]; 0 = the daemon's derived default
-  double read_budget = 0.5;    // driver read deadline = wake + budget·period [-]; 0 = derived
+  double read_budget = 0;      // driver read deadline = wake + budget·period [-]; 0 = derived
   bool lockstep = false;       // lockstep loop clock (kSim and the bus model only)
   double k_c = 0.0;            // adaptive gain
   double h = 0.0;              // kSim: integrator step override [s]; 0 = the scene's
   double command_timeout = 0.05;  // modules' command lifetime [s]
   int cpu = -1;                // pin the loop thread to this CPU; −1 = no pinning
-  bool observer = false;       // the onboard observer in the cycle
+  bool observer = true;        // the onboard observer in the cycle
   // The deployment path as configured for a robot: SCHED_FIFO for the loop (priority) and for the
   // virtual robot's modules' thread (robot_priority; real modules never wait for the host's CPU),
   // telemetry over DDS on loopback in domain telemetry_domain.
@@ -150,7 +150,8 @@ inline app::DaemonOptions quiet(drivers::Driver* d = nullptr, bool telemetry = f
 // Copies of the emulator's counters at the end of a run.
 struct EmulatorCounts {
   std::uint64_t syncs = 0, replies_sent = 0, replies_dropped = 0, replies_corrupted = 0,
-                commands = 0, torque_off_cmds = 0, lifetime_expired = 0, rx_errors = 0;
+                commands = 0, torque_off_cmds = 0, lifetime_expired = 0, rx_errors = 0,
+                first_off_sync = 0;
 };
 
 struct WalkResult {
@@ -210,7 +211,7 @@ inline WalkResult run_walk(const config::DaemonConfig& cfg, vrobot::VirtualRobot
   const drivers::EmulatorStats& st = robot.stats();
   r.emu = {st.syncs.load(), st.replies_sent.load(), st.replies_dropped.load(),
            st.replies_corrupted.load(), st.commands.load(), st.torque_off_cmds.load(),
-           st.lifetime_expired.load(), st.rx_errors.load()};
+           st.lifetime_expired.load(), st.rx_errors.load(), st.first_off_sync.load()};
   r.plant = robot.plant().progress();
   r.plant_t = r.plant.t;
   r.speed = robot.plant().forward_speed(2.0);

@@ -263,6 +263,8 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   // Report: the summary (events, loop timing; the consumer logged it unless there is a log file),
   // the exit line, the JSON report, and (sim) what the robot did.
   res.exit_line = runtime::format_exit_line(res.run, consumer.events());
+  res.event_log = consumer.events();
+  res.events = res.event_log.events();
   out << (cfg.log_file.empty() ? res.exit_line : res.summary) << "\n";  // the summary ends with it
   if (report.is_open()) {
     write_run_report(report, {.cfg = cfg, .run = res.run, .metrics = rt->metrics(),

@@ -10,8 +10,10 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "pedalwave/config/daemon.hpp"
+#include "pedalwave/runtime/run_events.hpp"
 #include "pedalwave/runtime/runtime.hpp"
 
 namespace pedalwave::app {
@@ -37,6 +39,8 @@ struct DaemonResult {
   double sim_time = 0.0;       // simulated time covered [s] (sim only)
   std::string summary;         // the printed summary (ends with the exit line)
   std::string exit_line;       // "exit: cycle_limit, final mode SAFE_STOP, no stopping fault; …"
+  runtime::EventLog event_log;        // every event of the run (bounded), for tests and tools
+  std::vector<runtime::RunEvent> events;  // event_log.events()
   bool telemetry_active = false;
 };
 

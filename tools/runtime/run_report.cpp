@@ -199,7 +199,7 @@ void write_run_report(std::ostream& out, const RunReportInput& in) {
   j.close('}');
 
   const drivers::DriverCounters& c = in.counters;
-  j.key("driver").open('{');  // the schema's second "driver": the counters
+  j.key("driver_counters").open('{');
   j.key("frames_tx").uint(c.frames_tx);
   j.key("frames_rx").uint(c.frames_rx);
   j.key("missing").uint(c.missing);

@@ -18,14 +18,12 @@
 //                {"count": int, "min", "p50", "p90", "p99", "p999", "max": num [µs],
 //                 "overflows": int, "bins": [[lo_us, hi_us, count], … non-empty bins only; the
 //                 overflow bin's hi_us is the exact max]}},
-//  "driver": {"frames_tx", "frames_rx", "missing", "late", "duplicate", "out_of_order",
-//             "checksum", "malformed", "bus_errors", "tx_dropped", "rx_dropped"},
+//  "driver_counters": {"frames_tx", "frames_rx", "missing", "late", "duplicate", "out_of_order",
+//                      "checksum", "malformed", "bus_errors", "tx_dropped", "rx_dropped"},
 //  "settings": {"stale_timeout_s": num, "read_budget": num, "observer": bool, "telemetry": bool}
 // }
-// The schema names "driver" twice at the top level, as specified: first the bus kind (a string),
-// then the driver's counters (an object). Both are written in that order; parsers that keep the
-// last duplicate (Python's json, jq) see the counters. Read the kind from the first, e.g. with
-// json.load(f, object_pairs_hook=list), or from "config".
+// Every key is unique (plain JSON readers: Python's json, jq): "driver" is the bus kind,
+// "driver_counters" its counters.
 #pragma once
 
 #include <ostream>

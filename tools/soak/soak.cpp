@@ -261,7 +261,7 @@ std::string summary(const Json& soak) {
     o << "\nloop: " << cell(loop["cycles"]) << " cycles, overruns " << cell(loop["overruns"]) << ", skipped periods "
       << cell(loop["skipped_periods"]) << " (max " << cell(loop["max_skipped"]) << " in a row), cycle drops "
       << cell(loop["cycle_drops"]) << ", event drops " << cell(loop["event_drops"]) << "\n";
-    const Json& drv = member(report, "driver", Json::Type::object);
+    const Json& drv = report["driver_counters"];
     if (drv.is_object()) {
       o << "bus:";
       for (const auto& [k, v] : drv.members()) o << ' ' << k << ' ' << cell(v);

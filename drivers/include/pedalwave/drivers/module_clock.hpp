@@ -34,7 +34,9 @@ class ModuleClock {
   std::int64_t to_host(std::uint32_t module_us) const noexcept;
   bool started() const noexcept { return started_; }
   bool locked() const noexcept { return blocks_ >= 2; }  // drift estimated
-  double drift_ppm() const noexcept { return b_ * 1e3; }  // module rate error estimate [ppm]
+  // Module clock rate error estimate [ppm]: x = host − 1000·m falls by 1000·ε per µs of a clock
+  // running 1 + ε fast.
+  double drift_ppm() const noexcept { return -b_ * 1e3; }
   // Host time minus the lower bound of the last sample [ns] (how far the estimate places the
   // sample after the earliest possible instant; ≥ 0 when the estimate is consistent).
   std::int64_t last_margin_ns() const noexcept { return last_margin_ns_; }

@@ -115,6 +115,8 @@ struct EmulatorStats {
   std::atomic<std::uint64_t> torque_off_cmds{0}; // of which torque-off [-]
   std::atomic<std::uint64_t> lifetime_expired{0};// module dropped to torque-off (timeout) [-]
   std::atomic<std::uint64_t> rx_errors{0};       // malformed / CRC-failed frames received [-]
+  std::atomic<std::uint64_t> first_off_sync{0};  // SYNCs handled when the first torque-off command
+                                                 // reached a module that was on (0: none) [-]
 };
 
 // The modules' state and fault logic, shared by the CAN and serial front ends.

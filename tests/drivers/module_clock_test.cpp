@@ -1,0 +1,73 @@
+// ModuleClock: the host's estimate of a module's free-running µs clock, from the SYNCs' send times
+// (a lower bound of each sample's host time), against the truth of a simulated module clock with
+// an offset, a drift, a wrap of its 32-bit counter and one-sided host delays (spikes included).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <random>
+
+#include "pedalwave/drivers/module_clock.hpp"
+
+namespace pd = pedalwave::drivers;
+
+namespace {
+
+struct Truth {
+  double drift_ppm;        // module clock rate error [ppm]
+  std::uint32_t start_us;  // module clock at host time t0
+  std::int64_t t0_ns;
+  std::uint32_t module_us(std::int64_t host_ns) const {
+    const double us = std::floor(static_cast<double>(host_ns - t0_ns) * (1.0 + drift_ppm * 1e-6) * 1e-3);
+    return start_us + static_cast<std::uint32_t>(static_cast<std::int64_t>(us) & 0xFFFFFFFFll);
+  }
+};
+
+}  // namespace
+
+TEST(ModuleClock, OffsetAndDriftFromOneSidedDelays) {
+  for (double drift : {-50.0, 0.0, 35.0}) {
+    const Truth tr{drift, 4294967295u - 1'500'000u, 1'000'000'000'000};  // wraps after 1.5 s
+    pd::ModuleClock clk;
+    std::mt19937 rng(3);
+    std::exponential_distribution<double> delay(1.0 / 40e3);  // 40 µs mean host delay [ns]
+    std::uniform_real_distribution<double> u(0, 1);
+    double worst_abs = 0, worst_step = 0;
+    std::int64_t prev_est = 0, prev_true = 0;
+    for (int k = 0; k < 6000; ++k) {  // 6 s at 1 kHz
+      const std::int64_t sample = tr.t0_ns + 1'000'000ll * k + static_cast<std::int64_t>(200e3 * u(rng));  // jittered SYNCs
+      // The host knows only a time before the sample: its send time (one-sided delay, spikes).
+      const double d = delay(rng) + (u(rng) < 0.01 ? 5e6 : 0.0);
+      const std::int64_t lower = sample - static_cast<std::int64_t>(d);
+      const std::int64_t est = clk.update(tr.module_us(sample), lower);
+      if (k >= 2 * pd::ModuleClock::kBlock) {
+        worst_abs = std::max(worst_abs, std::abs(static_cast<double>(est - sample)));
+        if ((k + 1) % pd::ModuleClock::kBlock != 0)  // the mapping moves only when a block closes
+          worst_step = std::max(worst_step, std::abs(static_cast<double>((est - prev_est) - (sample - prev_true))));
+      }
+      prev_est = est;
+      prev_true = sample;
+    }
+    ASSERT_TRUE(clk.locked());
+    EXPECT_NEAR(clk.drift_ppm(), drift, 2.0) << "drift " << drift;
+    EXPECT_LT(worst_abs, 20e3) << "sample times within 20 µs of the truth (drift " << drift << ")";
+    EXPECT_LT(worst_step, 2.5e3) << "intervals within the clock's µs resolution (drift " << drift << ")";
+    // The applied-time mapping: a module time 300 µs before the last sample.
+    const std::int64_t last = prev_true;
+    const std::uint32_t m = tr.module_us(last - 300'000);
+    EXPECT_NEAR(static_cast<double>(clk.to_host(m) - (last - 300'000)), 0.0, 20e3);
+  }
+}
+
+TEST(ModuleClock, NeverEarlierThanAProvenBoundBeforeLock) {
+  pd::ModuleClock clk;
+  const Truth tr{20.0, 7, 5'000'000'000};
+  for (int k = 0; k < 100; ++k) {
+    const std::int64_t sample = tr.t0_ns + 1'000'000ll * k;
+    const std::int64_t lower = sample - (k % 7 == 0 ? 0 : 30'000);
+    const std::int64_t est = clk.update(tr.module_us(sample), lower);
+    EXPECT_GE(est - lower, -1000) << "cycle " << k;  // the µs floor of the module's stamp
+    EXPECT_LT(std::abs(est - sample), 3000) << "cycle " << k;
+  }
+  EXPECT_FALSE(clk.locked());
+}

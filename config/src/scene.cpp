@@ -158,8 +158,8 @@ Scene read_scene(const Reader& r) {
       in.fail_key("q", "the full q (2N+1 values flexible, N+2 rigid) with pose: explicit");
   }
   if (r.has("faults")) {
-    // Injected faults (applied by drivers::FaultInjectingDriver): {type, joint, t_start, value,
-    // duration}.
+    // Injected faults (drivers::FaultInjector: by the FaultInjectingDriver and inside the virtual
+    // robot's modules): {type, joint, t_start, value, duration}.
     const Reader fs = r["faults"];
     if (!fs.is_sequence()) fs.fail("a list of {type, joint, t_start, value, duration}");
     std::string names;

@@ -7,7 +7,9 @@
 #include <sys/prctl.h>
 #include <sys/wait.h>
 
+#include <fstream>
 #include <regex>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -77,6 +79,16 @@ class Tool {
   int out_ = -1;
 };
 
+// The test scene with `faults_yaml` (a `faults:` list) appended, as a file; returns its path.
+std::string scene_with_faults(const std::string& file, const std::string& faults_yaml) {
+  std::ifstream in(test::kScenePath);
+  std::stringstream text;
+  text << in.rdbuf() << "\n" << faults_yaml;
+  const std::string path = ::testing::TempDir() + file;
+  std::ofstream(path) << text.str();
+  return path;
+}
+
 std::uint64_t number_after(const std::string& text, const std::string& label) {
   std::smatch m;
   const std::regex re(label + " ([0-9]+)");
@@ -137,5 +149,47 @@ TEST(VirtualRobotCli, BadInputExitsWithCode2AndOneLine) {
   {
     Tool t({"--scene", test::kScenePath, "--pty", "--loss", "1.5"});
     EXPECT_EQ(t.wait(), 2) << t.text;
+  }
+}
+
+TEST(VirtualRobotCli, PrintsTheScenesFaultsAndWhetherTheyActed) {
+  const std::string path = scene_with_faults(
+      "vrobot_cli_faults.yaml", "faults:\n  - {type: encoder_stuck, joint: 2, t_start: 4}\n");
+  {
+    Tool t({"--scene", path, "--pty", "--duration", "0.3"});
+    EXPECT_EQ(t.wait(), 0) << t.text;
+    EXPECT_NE(t.text.find("faults (inside the modules): encoder_stuck on joint 3 from 4.0 s\n"),
+              std::string::npos) << t.text;
+    // No host talked: plant time never reached the onset.
+    EXPECT_NE(t.text.find("encoder_stuck on joint 3 from 4.0 s: never active"), std::string::npos)
+        << t.text;
+  }
+  {
+    Tool t({"--scene", path, "--pty", "--duration", "0.3", "--no-faults"});
+    EXPECT_EQ(t.wait(), 0) << t.text;
+    EXPECT_EQ(t.text.find("faults (inside the modules)"), std::string::npos) << t.text;
+    EXPECT_NE(t.text.find("faults not injected (--no-faults): encoder_stuck on joint 3 from 4.0 s"),
+              std::string::npos) << t.text;
+  }
+}
+
+TEST(VirtualRobotCli, HostSideFaultInTheSceneIsBadInputNamingIt) {
+  const std::string path = scene_with_faults(
+      "vrobot_cli_stale.yaml",
+      "faults:\n  - {type: encoder_offset, joint: 0, t_start: 1, value: 0.1}\n"
+      "  - {type: stale, joint: 1, t_start: 2, value: 3}\n");
+  {
+    Tool t({"--scene", path, "--pty"});
+    EXPECT_EQ(t.wait(), 2) << t.text;
+    EXPECT_NE(t.text.find("faults[1]: stale"), std::string::npos) << t.text;
+    EXPECT_NE(t.text.find("--counter-fault"), std::string::npos) << t.text;
+  }
+  {
+    Tool t({"--scene", path, "--pty", "--duration", "0.3", "--ignore-host-faults"});
+    EXPECT_EQ(t.wait(), 0) << t.text;
+    EXPECT_NE(t.text.find("faults (inside the modules): encoder_offset 0.1 on joint 1 from 1.0 s\n"),
+              std::string::npos) << t.text;
+    EXPECT_NE(t.text.find("faults not injected (host-side, --ignore-host-faults): stale 3.0 on "
+                          "joint 2 from 2.0 s"), std::string::npos) << t.text;
   }
 }

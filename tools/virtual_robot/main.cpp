@@ -5,7 +5,13 @@
 //   pedalwave_virtual_robot --scene config/scenes/flat_high_friction.yaml --pty [--link PATH]
 //       [--latency ms] [--loss p] [--bit-error p] [--silent J]... [--counter-fault J:repeat]...
 //       [--fault-onset SYNC] [--command-timeout ms] [--seed n] [--h s] [--max-gap s]
-//       [--duration s] [--status s]
+//       [--duration s] [--status s] [--no-faults] [--ignore-host-faults]
+//
+// The scene's `faults:` are injected inside the modules (vrobot::SimulationPlant: physical faults
+// on the plant, sensor faults on what the modules report, module_silent as a module that stops
+// answering; t = plant time) and listed at start and in the exit report; --no-faults ignores them.
+// A host-side fault (stale, out_of_order, repeated_frame) is refused (exit 2) unless
+// --ignore-host-faults.
 //
 // --pty prints "pty: /dev/pts/N" (and makes the --link symlink): give that path to the runtime's
 // serial driver (driver.device). Plant time starts at the first SYNC. Prints what it did (frames,
@@ -47,7 +53,7 @@ int main(int argc, char** argv) {
   CLI::App app{"pedalwave_virtual_robot: run a scene's plant model and answer as the robot's SEA "
                "modules would (drivers/PROTOCOL.md), on a CAN interface or a pseudo-terminal"};
   std::string scene_path, can_if, link;
-  bool fd = false, pty = false;
+  bool fd = false, pty = false, no_faults = false, ignore_host_faults = false;
   double latency_ms = 0.0, loss = 0.0, bit_error = 0.0, timeout_ms = 100.0, duration = 0.0,
          status_every = 0.0, max_gap = 1.0;
   // The bus the modules sit on (wire times) and their clocks.
@@ -86,6 +92,9 @@ int main(int argc, char** argv) {
   app.add_option("--h", h, "integrator step override [s] (default: the scene's; a slow machine, "
                  "e.g. the emulated test VM, needs a larger step to integrate in real time)")
       ->check(CLI::PositiveNumber);
+  app.add_flag("--no-faults", no_faults, "ignore the scene's `faults:` list");
+  app.add_flag("--ignore-host-faults", ignore_host_faults, "skip the scene's host-side faults "
+               "(stale, out_of_order, repeated_frame) instead of refusing the scene");
   app.add_option("--duration", duration, "stop after this long [s] (0 = until Ctrl-C)")
       ->check(CLI::NonNegativeNumber)->capture_default_str();
   app.add_option("--status", status_every, "print a progress line every this many seconds (0 = off)")
@@ -164,6 +173,8 @@ int main(int argc, char** argv) {
   }
   opt.plant.max_gap = max_gap;
   opt.plant.record_period = 0;  // the CLI reports progress only
+  opt.plant.apply_scene_faults = !no_faults;
+  opt.plant.ignore_host_side_faults = ignore_host_faults;
 
   // The transport.
   int bus_fd = -1;
@@ -205,6 +216,17 @@ int main(int argc, char** argv) {
                    fd ? (", data phase " + std::to_string(data_bitrate / 1e6).substr(0, 4) + " Mbit/s").c_str() : "");
   std::printf("module clocks: free-running µs counters, rate errors spread over ±%g ppm; command "
               "lifetime %g ms\n", drift_ppm, timeout_ms);
+  {
+    std::string applied, skipped;
+    for (const pedalwave::model::FaultSpec& sf : robot->plant().faults())
+      applied += (applied.empty() ? "" : "; ") + vr::describe(sf);
+    for (const pedalwave::model::FaultSpec& sf : robot->plant().skipped_faults())
+      skipped += (skipped.empty() ? "" : "; ") + vr::describe(sf);
+    if (!applied.empty()) std::printf("faults (inside the modules): %s\n", applied.c_str());
+    if (!skipped.empty())
+      std::printf("faults not injected (%s): %s\n",
+                  no_faults ? "--no-faults" : "host-side, --ignore-host-faults", skipped.c_str());
+  }
   std::printf("waiting for the host's SYNC; Ctrl-C to stop\n");
   std::fflush(stdout);
 

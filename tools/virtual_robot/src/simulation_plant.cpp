@@ -1,4 +1,5 @@
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -15,7 +16,8 @@ constexpr auto kRelaxed = std::memory_order_relaxed;
 SimulationPlant::SimulationPlant(const model::Scene& scene, const PlantOptions& opt)
     : opt_(opt),
       sim_(std::make_unique<model::Simulation>(scene, scene.integrator)),
-      data_(sim_->plant().model()) {
+      data_(sim_->plant().model()),
+      injector_(sim_->plant().model().joints(), /*physical=*/true, opt.fault_seed) {
   if (!(opt_.max_gap > 0) || !std::isfinite(opt_.max_gap))
     throw std::invalid_argument("virtual robot: max_gap = " + std::to_string(opt_.max_gap) +
                                 " s: expected a finite value > 0");
@@ -46,6 +48,37 @@ SimulationPlant::SimulationPlant(const model::Scene& scene, const PlantOptions& 
   const double x = com_x_now();
   com_x_.store(x, kRelaxed);
   com_x0_.store(x, kRelaxed);
+
+  // The scene's faults, inside the modules (validated now, applied in the cycle).
+  for (auto& t : onset_t_) t.store(std::numeric_limits<double>::quiet_NaN(), kRelaxed);
+  for (std::size_t i = 0; i < scene.faults.size(); ++i) {
+    const model::FaultSpec& f = scene.faults[i];
+    const std::string where = "virtual robot: scene '" + scene.name + "' faults[" +
+                              std::to_string(i) + "]: ";
+    if (!opt_.apply_scene_faults) {
+      skipped_.push_back(f);
+      continue;
+    }
+    if (drivers::is_host_side(f.type)) {
+      if (opt_.ignore_host_side_faults) {
+        skipped_.push_back(f);
+        continue;
+      }
+      throw std::invalid_argument(
+          where + std::string(model::to_string(f.type)) + " (joint: " + std::to_string(f.joint) +
+          ") is a fault of the host's reception (old, reordered or repeated frames), not of a "
+          "module: the virtual robot cannot inject it inside the modules. Use the module "
+          "emulator's counter faults instead (FaultConfig::module[j].counter = kRepeat or "
+          "kBackwards; pedalwave_virtual_robot --counter-fault J:repeat|backwards), or skip the "
+          "host-side faults (PlantOptions::ignore_host_side_faults; pedalwave_virtual_robot "
+          "--ignore-host-faults)");
+    }
+    try {
+      injector_.add(f, "scene");
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(where + e.what());
+    }
+  }
 }
 
 double SimulationPlant::com_x_now() {
@@ -91,6 +124,21 @@ void SimulationPlant::measure(drivers::Feedback& out) {
   if (status_.load(kRelaxed) != 0)
     for (int j = 0; j < joints_; ++j)
       out.status[static_cast<std::size_t>(j)] |= drivers::kStatusEncoderFault;
+  // Sensor faults on what the modules report (their PD law above used the true signals).
+  if (!injector_.faults().empty()) {
+    injector_.apply_sensors(s.t(), out);
+    note_active(s.t(), /*physical=*/false);
+  }
+}
+
+bool SimulationPlant::answering(int j) const { return !injector_.silent(j, sim_->t()); }
+
+void SimulationPlant::note_active(double t, bool physical) {
+  const std::vector<model::FaultSpec>& faults = injector_.faults();
+  for (std::size_t i = 0; i < faults.size(); ++i)
+    if (model::is_physical(faults[i].type) == physical &&
+        drivers::FaultInjector::active(faults[i], t) && std::isnan(onset_t_[i].load(kRelaxed)))
+      onset_t_[i].store(t, kRelaxed);
 }
 
 void SimulationPlant::advance_to(std::int64_t t_ns) {
@@ -114,6 +162,8 @@ void SimulationPlant::advance_to(std::int64_t t_ns) {
   // Plant steps of h up to the SYNC, the last one shortened so the sample is taken at the SYNC.
   const std::uint64_t steps = fixed_step_
       ? static_cast<std::uint64_t>(std::ceil((target - s.t()) / h_ - 1e-9)) : 1u;
+  // Physical faults active at the start of this advance (healed once they have ended).
+  if (injector_.apply_physical(s.t(), s.plant().faults())) note_active(s.t(), /*physical=*/true);
   const model::StepStatus st = s.advance_to(target);
   steps_.fetch_add(steps, kRelaxed);
   if (st != model::StepStatus::kOk) status_.store(static_cast<int>(st));
@@ -140,6 +190,40 @@ double SimulationPlant::forward_speed(double t_from) const {
   if (i0 + 1 >= rec_t_.size()) return std::numeric_limits<double>::quiet_NaN();
   const std::size_t i1 = rec_t_.size() - 1;
   return (rec_x_[i1] - rec_x_[i0]) / (rec_t_[i1] - rec_t_[i0]);
+}
+
+namespace {
+// 4 → "4.0", 0.25 → "0.25" (seconds and values as a scene file would give them).
+std::string number(double x) {
+  char b[32];
+  const bool one_decimal = std::abs(x * 10 - std::round(x * 10)) < 1e-9 && std::abs(x) < 1e9;
+  std::snprintf(b, sizeof b, one_decimal ? "%.1f" : "%g", x);
+  return b;
+}
+bool has_value(model::FaultType t) {
+  using model::FaultType;
+  switch (t) {
+    case FaultType::kEncoderStuck:
+    case FaultType::kDeflectionStuck:
+    case FaultType::kNaN:
+    case FaultType::kModuleSilent:
+    case FaultType::kOutOfOrder:
+    case FaultType::kRepeatedFrame:
+      return false;
+    default:
+      return true;
+  }
+}
+}  // namespace
+
+std::string describe(const model::FaultSpec& f) {
+  std::string s(model::to_string(f.type));
+  if (has_value(f.type)) s.append(" ").append(number(f.value));
+  if (f.type == model::FaultType::kRepeatedFrame) s.append(" on every joint");
+  else s.append(" on joint ").append(std::to_string(f.joint + 1));
+  s.append(" from ").append(number(f.t_start)).append(" s");
+  if (std::isfinite(f.duration)) s.append(" for ").append(number(f.duration)).append(" s");
+  return s;
 }
 
 }  // namespace pedalwave::vrobot

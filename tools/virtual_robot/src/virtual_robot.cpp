@@ -111,6 +111,21 @@ std::string VirtualRobot::report() {
   o << line;
   if (p.gaps_skipped > 0) o << ", " << p.gaps_skipped << " idle gap(s) of " << p.gap_time_skipped << " s not integrated";
   o << "\n";
+  // The scene's faults: each applied one and whether (when) it acted; the skipped ones.
+  const std::vector<model::FaultSpec>& applied = plant_->faults();
+  if (!applied.empty()) o << "  scene faults (inside the modules):\n";
+  for (std::size_t i = 0; i < applied.size(); ++i) {
+    const double t_on = plant_->fault_onset(i);
+    o << "    " << describe(applied[i]) << ": ";
+    if (std::isnan(t_on)) {
+      o << "never active\n";
+    } else {
+      std::snprintf(line, sizeof line, "active from %.3f s of plant time\n", t_on);
+      o << line;
+    }
+  }
+  for (const model::FaultSpec& skipped : plant_->skipped_faults())
+    o << "  scene fault not injected: " << describe(skipped) << "\n";
   return o.str();
 }
 

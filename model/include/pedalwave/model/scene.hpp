@@ -93,8 +93,10 @@ struct GaitParams {
 };
 
 // An injected fault (scene `faults:` list; config/scenes/README.md). The physical ones act on the
-// Plant (PlantFaults), the others on the driver's Feedback; both are applied by
-// drivers::FaultInjectingDriver from t_start on (a plain SimDriver ignores the list).
+// Plant (PlantFaults), the others on the driver's Feedback; both are applied (drivers::FaultInjector)
+// by drivers::FaultInjectingDriver from t_start on (a plain SimDriver ignores the list) and, except
+// the host-side stale/out_of_order/repeated_frame, inside the virtual robot's modules
+// (vrobot::SimulationPlant).
 enum class FaultType : std::uint8_t {
   // Physical (model::PlantFaults)
   kTorqueGain,       // actuator output gain := value [-] (0 = torque loss)
@@ -164,7 +166,7 @@ struct Scene {
   GaitParams gait;
   double duration = 10.0;  // [s]
   IntegratorOptions integrator{.method = Method::kImplicitVelocity, .h = 1e-4};
-  std::vector<FaultSpec> faults;  // injected faults (applied by drivers::FaultInjectingDriver)
+  std::vector<FaultSpec> faults;  // injected faults (drivers::FaultInjector; see FaultType)
 };
 
 // Throws std::invalid_argument naming scene.<key>, its value and what was expected.

@@ -1,7 +1,10 @@
 // A decorator driver that injects faults (model::FaultSpec, a scene's `faults:` list) into any
 // Driver: sensor and communication faults on the Feedback it returns, and — when the wrapped
 // driver is a SimDriver — the physical ones (actuator gain, motor friction, spring stiffness,
-// joint load) on the simulated Plant's PlantFaults.
+// joint load) on the simulated Plant's PlantFaults. The sensor and physical faults and the
+// validation are the shared FaultInjector's (fault_injector.hpp); the communication faults (a
+// silent module as repeated values + kStatusMissing, stale, out-of-order, repeated frames) are
+// host-side data effects and are applied here, each at its place in the list order.
 //
 // Time base: a fault's t_start/duration are seconds since the first read(), measured with the
 // Feedback stamps of the wrapped driver (lockstep SimDriver: plant time, so t_start is exact on the
@@ -20,9 +23,9 @@
 
 #include <array>
 #include <cstdint>
-#include <random>
 #include <vector>
 
+#include "pedalwave/drivers/fault_injector.hpp"
 #include "pedalwave/drivers/io.hpp"
 #include "pedalwave/drivers/sim_driver.hpp"
 #include "pedalwave/model/scene.hpp"
@@ -31,8 +34,9 @@ namespace pedalwave::drivers {
 
 class FaultInjectingDriver final : public Driver {
  public:
-  static constexpr int kMaxFaults = 32;  // faults one decorator carries [-]
+  static constexpr int kMaxFaults = FaultInjector::kMaxFaults;  // faults one decorator carries [-]
   static constexpr int kHistory = 16;    // cycles of feedback history (stale/out-of-order) [-]
+  static_assert(kHistory == FaultInjector::kMaxStaleDelay + 1);
 
   // Wraps `inner` (not owned, must outlive this). `sim` may be &inner when it is a SimDriver
   // (physical faults need it; nullptr: physical faults throw at add()). Throws
@@ -46,7 +50,7 @@ class FaultInjectingDriver final : public Driver {
   void add(const model::FaultSpec& f);
   // Removes every fault (the plant's physical faults are healed at the next write()).
   void clear();
-  const std::vector<model::FaultSpec>& faults() const { return faults_; }
+  const std::vector<model::FaultSpec>& faults() const { return injector_.faults(); }
 
   int joints() const override { return inner_.joints(); }
   IoStatus read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback& out) override;
@@ -63,17 +67,13 @@ class FaultInjectingDriver final : public Driver {
   const Feedback& clean_feedback() const { return clean_; }
 
  private:
-  bool active(const model::FaultSpec& f) const {
-    return t_ >= f.t_start && t_ < f.t_start + f.duration;
-  }
-  void validate(const model::FaultSpec& f) const;
-  void apply_physical();
+  // Communication fault i (active, `onset` as FaultInjector::update) on `out`; cycle `now`.
+  void apply_communication(std::size_t i, bool onset, std::uint64_t now, Feedback& out,
+                           IoStatus& status);
 
   Driver& inner_;
   SimDriver* sim_;
-  std::vector<model::FaultSpec> faults_;  // reserved kMaxFaults
-  std::mt19937_64 rng_;
-  std::normal_distribution<double> unit_{0.0, 1.0};
+  FaultInjector injector_;         // the faults, their sensor and physical effects
   double t_ = 0.0;                 // time of the last read [s]
   bool started_ = false;
   std::int64_t stamp0_ = 0;        // stamp of the first read [ns]
@@ -81,11 +81,9 @@ class FaultInjectingDriver final : public Driver {
   Feedback clean_{};               // this cycle, before injection
   Feedback last_out_{};            // the previous cycle as delivered (repeated frame)
   std::vector<Feedback> history_;  // clean feedback of the last kHistory cycles (ring)
-  std::array<double, kMaxFaults> held_a_{};  // per fault: value frozen at onset (stuck, silent)
-  std::array<double, kMaxFaults> held_b_{};
-  std::array<double, kMaxFaults> held_c_{};
-  std::array<bool, kMaxFaults> holding_{};
-  bool physical_dirty_ = false;    // plant faults were set and must be re-evaluated
+  std::array<double, kMaxFaults> held_beta_{};  // per fault: values frozen at onset (silent)
+  std::array<double, kMaxFaults> held_beta_dot_{};
+  std::array<double, kMaxFaults> held_deflection_{};
 };
 
 }  // namespace pedalwave::drivers

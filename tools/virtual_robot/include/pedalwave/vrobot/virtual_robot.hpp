@@ -14,6 +14,7 @@
 // thread; the recording and the Simulation itself only after VirtualRobot::stop().
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -21,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "pedalwave/drivers/fault_injector.hpp"
 #include "pedalwave/drivers/module_emulator.hpp"
 #include "pedalwave/model/kinematics.hpp"
 #include "pedalwave/model/plant.hpp"
@@ -34,6 +36,11 @@ struct PlantOptions {
                                     // away; the plant waits, frozen) [s]
   double record_period = 0.01;      // COM recording period of plant time [s]; 0 = off
   std::size_t record_capacity = 0;  // samples preallocated; when full, recording stops [-]
+  bool apply_scene_faults = true;   // inject the scene's `faults:` inside the modules (see
+                                    // SimulationPlant); false: the list is ignored
+  bool ignore_host_side_faults = false;  // skip the scene's stale / out_of_order /
+                                         // repeated_frame faults instead of refusing the scene
+  std::uint64_t fault_seed = 1;     // seed of the encoder_noise draws [-]
 };
 
 // Plant-side progress, readable from any thread (relaxed atomics).
@@ -58,15 +65,33 @@ struct PlantProgress {
 // measure(): the scene's sensor model (noise/quantization when switched on); status bits:
 //   kStatusSaturated when a torque limit is on and |u_j| reached it; kStatusEncoderFault on every
 //   joint once the plant has failed (it stays frozen; the host must fault).
-// apply(), measure(), advance_to() allocate nothing.
+// Scene faults (opt.apply_scene_faults; drivers::FaultInjector, t = plant time since the first
+//   SYNC), inside the modules:
+//   physical (torque_gain, motor_friction, spring_scale, joint_load): into the model's PlantFaults
+//     before each advance whose start time is ≥ t_start, healed after t_start + duration;
+//   sensor (encoder_*, deflection_*, nan, implausible): on what measure() reports; the module's own
+//     PD law (the plant's input law) keeps the true signals;
+//   module_silent: answering(j) is false while active (the emulator sends nothing for module j);
+//   stale, out_of_order, repeated_frame are the host's reception, not a module's: the constructor
+//     refuses them (std::invalid_argument naming the fault, its index and the emulator's counter
+//     faults to use instead) unless opt.ignore_host_side_faults.
+// apply(), measure(), advance_to(), answering() allocate nothing.
 class SimulationPlant final : public drivers::ModulePlant {
  public:
-  // Builds the simulation (throws std::invalid_argument on a bad scene / options).
+  // Builds the simulation (throws std::invalid_argument on a bad scene / options / fault).
   explicit SimulationPlant(const model::Scene& scene, const PlantOptions& opt = {});
 
   void apply(const drivers::Command& cmd) override;
   void measure(drivers::Feedback& out) override;
   void advance_to(std::int64_t t_ns) override;
+  bool answering(int j) const override;
+
+  // The scene faults applied inside the modules (empty when !opt.apply_scene_faults) and those
+  // skipped (host-side ones with opt.ignore_host_side_faults, or all with !apply_scene_faults).
+  const std::vector<model::FaultSpec>& faults() const { return injector_.faults(); }
+  const std::vector<model::FaultSpec>& skipped_faults() const { return skipped_; }
+  // Plant time at which applied fault i first acted [s]; NaN while it has not (any thread).
+  double fault_onset(std::size_t i) const { return onset_t_[i].load(std::memory_order_relaxed); }
 
   int joints() const { return joints_; }
   PlantProgress progress() const;
@@ -83,6 +108,7 @@ class SimulationPlant final : public drivers::ModulePlant {
  private:
   double com_x_now();
   void record();
+  void note_active(double t, bool physical);  // fault_onset() of the faults active at t
 
   PlantOptions opt_;
   std::unique_ptr<model::Simulation> sim_;
@@ -101,7 +127,14 @@ class SimulationPlant final : public drivers::ModulePlant {
   std::atomic<double> t_{0.0}, com_x_{0.0}, com_x0_{0.0}, gap_time_{0.0};
   std::atomic<std::uint64_t> steps_{0}, gaps_{0}, off_applies_{0};
   std::atomic<bool> all_off_{true};
+  drivers::FaultInjector injector_;      // the scene's faults applied inside the modules
+  std::vector<model::FaultSpec> skipped_;
+  std::array<std::atomic<double>, drivers::FaultInjector::kMaxFaults> onset_t_{};
 };
+
+// One fault as text, joints 1-based: "encoder_stuck on joint 3 from 4.0 s",
+// "torque_gain 0.25 on joint 2 from 1.5 s for 2.0 s".
+std::string describe(const model::FaultSpec& f);
 
 enum class Bus : std::uint8_t { kCan, kSerial };
 

@@ -1,5 +1,6 @@
 #include "pedalwave/drivers/module_clock.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace pedalwave::drivers {
@@ -30,7 +31,20 @@ std::int64_t ModuleClock::update(std::uint32_t module_us, std::int64_t lower_ns)
     }
   }
   if (in_block_ >= kBlock) close_block();
-  const std::int64_t host = base_ns_ + std::llround(host_of(m));
+  // Continuous output: the drift-corrected interval, plus a bounded step toward the estimate.
+  const double target = host_of(m);
+  if (!out_started_) {
+    out_started_ = true;
+    out_ = target;
+  } else {
+    const double dm = static_cast<double>(m - out_m_);
+    double next = out_ + (1000.0 + b_) * dm;
+    const double lim = kSlew * 1000.0 * std::abs(dm);
+    next += std::clamp(target - next, -lim, lim);
+    out_ = next;
+  }
+  out_m_ = m;
+  const std::int64_t host = base_ns_ + std::llround(out_);
   last_margin_ns_ = host - lower_ns;
   return host;
 }
@@ -71,7 +85,8 @@ void ModuleClock::close_block() noexcept {
 }
 
 std::int64_t ModuleClock::to_host(std::uint32_t module_us) const noexcept {
-  return base_ns_ + std::llround(host_of(unwrap(module_us)));
+  const double dm = static_cast<double>(unwrap(module_us) - out_m_);
+  return base_ns_ + std::llround(out_ + (1000.0 + b_) * dm);
 }
 
 }  // namespace pedalwave::drivers

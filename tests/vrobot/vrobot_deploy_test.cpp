@@ -179,6 +179,6 @@ INSTANTIATE_TEST_SUITE_P(
         BusFault{model::FaultType::kSpringScale, 1, 0.2, runtime::FaultClass::kSpringBroken, "broken_spring"},
         BusFault{model::FaultType::kEncoderStuck, 3, 0.0, runtime::FaultClass::kEncoderStuck, "encoder_stuck"},
         BusFault{model::FaultType::kEncoderOffset, 0, 0.02, runtime::FaultClass::kEncoderJump, "encoder_jump"},
-        BusFault{model::FaultType::kDeflectionBias, 2, 0.03, runtime::FaultClass::kDeflectionBias, "deflection_bias"},
+        BusFault{model::FaultType::kDeflectionBias, 2, 0.05, runtime::FaultClass::kDeflectionBias, "deflection_bias"},
         BusFault{model::FaultType::kModuleSilent, 4, 0.0, runtime::FaultClass::kModuleSilent, "silent_module"}),
     [](const auto& param_info) { return std::string(param_info.param.name); });

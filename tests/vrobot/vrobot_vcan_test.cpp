@@ -537,6 +537,6 @@ INSTANTIATE_TEST_SUITE_P(
         VcanFault{model::FaultType::kSpringScale, 1, 0.2, runtime::FaultClass::kSpringBroken, "broken_spring"},
         VcanFault{model::FaultType::kEncoderStuck, 3, 0.0, runtime::FaultClass::kEncoderStuck, "encoder_stuck"},
         VcanFault{model::FaultType::kEncoderOffset, 0, 0.02, runtime::FaultClass::kEncoderJump, "encoder_jump"},
-        VcanFault{model::FaultType::kDeflectionBias, 2, 0.03, runtime::FaultClass::kDeflectionBias, "deflection_bias"},
+        VcanFault{model::FaultType::kDeflectionBias, 2, 0.05, runtime::FaultClass::kDeflectionBias, "deflection_bias"},
         VcanFault{model::FaultType::kModuleSilent, 4, 0.0, runtime::FaultClass::kModuleSilent, "silent_module"}),
     [](const auto& param_info) { return std::string(param_info.param.name); });

@@ -10,10 +10,13 @@
 // through the last kBlocks block maxima gives (a, b). Until two blocks exist the mapping is the
 // running maximum with b = 0.
 //
-// The mapping changes only when a block closes (every kBlock samples), by the envelope's noise
-// (microseconds): differences of mapped times within a block are exact to the clock's resolution
-// and the drift estimate. update() and to_host() are O(1) (the fit: kBlocks points, once per
-// block), allocation-free and noexcept.
+// The times handed out follow that estimate continuously: each sample's host time is the previous
+// one plus the module-clock interval corrected for the estimated drift, plus a correction toward
+// the estimate of at most kSlew of the interval (1000 ppm). So differences of mapped times — what
+// the observer integrates over — are exact to the clock's resolution and kSlew·dt (≤ 2 µs per
+// 2 ms) even while the estimate converges or a block moves it; absolute times converge at kSlew.
+// update() and to_host() are O(1) (the fit: kBlocks points, once per block), allocation-free and
+// noexcept.
 #pragma once
 
 #include <array>
@@ -25,12 +28,14 @@ class ModuleClock {
  public:
   static constexpr int kBlock = 128;  // samples per envelope block [-]
   static constexpr int kBlocks = 16;  // blocks in the line fit [-]
+  static constexpr double kSlew = 1e-3;  // largest correction per unit of interval [-]
 
   void reset() noexcept { *this = ModuleClock{}; }
   // One sample stamped `module_us` (the module's clock, wrapping at 2³²) that cannot have happened
   // before host time `lower_ns` (CLOCK_MONOTONIC) [ns]. Returns the sample's host time [ns].
   std::int64_t update(std::uint32_t module_us, std::int64_t lower_ns) noexcept;
-  // Host time [ns] of module time `module_us`, taken as the one within ±2³¹ µs of the last update.
+  // Host time [ns] of module time `module_us`, taken as the one within ±2³¹ µs of the last update,
+  // on the same continuous mapping as the last update's result.
   std::int64_t to_host(std::uint32_t module_us) const noexcept;
   bool started() const noexcept { return started_; }
   bool locked() const noexcept { return blocks_ >= 2; }  // drift estimated
@@ -66,6 +71,10 @@ class ModuleClock {
   double a_ = 0.0, b_ = 0.0;
   std::int64_t m_ref_ = 0;
   std::int64_t last_margin_ns_ = 0;
+  // The continuous output mapping: host − base of module time out_m_ [ns].
+  bool out_started_ = false;
+  double out_ = 0.0;
+  std::int64_t out_m_ = 0;
 };
 
 }  // namespace pedalwave::drivers

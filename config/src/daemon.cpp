@@ -161,8 +161,9 @@ void read_telemetry(const Reader& r, DaemonConfig& c) {
 // Timeouts from the rate and the bus unless the file gives them (README "Timeouts"):
 //   read deadline  = wake + read_budget · period, read_budget ≥ the bus's reply window (derived:
 //                    1.25 · window + 0.2 ms, within [0.5, 0.9] of the period);
-//   stale_timeout  = max(0.1 s, 20 periods): well above a loaded host's read tail (tens of ms
-//                    measured by the soak tool), far below a walking robot's time to harm itself;
+//   stale_timeout  = max(0.25 s, 50 periods): above a loaded host's worst stall (the soak tool
+//                    measured a 99 ms wake-up of the SCHED_FIFO loop on a shared 2-core machine),
+//                    far below a walking robot's time to harm itself (its modules hold their PD);
 //   module silent  = a bus: max(3, 50 ms of cycles) consecutive missing replies (a late reply is
 //                    a missing one); the in-process plant: 3 (it never drops a reply).
 void derive_timeouts(const Reader& r, DaemonConfig& c) {
@@ -198,9 +199,9 @@ void derive_timeouts(const Reader& r, DaemonConfig& c) {
     std::snprintf(buf, sizeof buf, "read deadline %.2f of the period", rc.read_budget);
   }
   note += buf;
-  if (!given_stale) rc.stale_timeout = std::max(0.1, 20.0 * period);
+  if (!given_stale) rc.stale_timeout = std::max(0.25, 50.0 * period);
   std::snprintf(buf, sizeof buf, ", stale_timeout %g s (%s)", rc.stale_timeout,
-                given_stale ? "given" : "derived: max(0.1 s, 20 periods)");
+                given_stale ? "given" : "derived: max(0.25 s, 50 periods)");
   note += buf;
   c.observer_missing_cycles =
       d.kind == DriverKind::kSim ? 3 : std::max(3, static_cast<int>(std::ceil(0.05 * rc.rt.rate_hz)));

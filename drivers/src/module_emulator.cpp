@@ -20,12 +20,15 @@ namespace {
 
 constexpr std::int64_t kPollSliceNs = 1'000'000;  // stop flag checked at least every 1 ms
 
-// Wait for input or until `until_ns`, at most one slice. Returns poll's revents (0 on timeout).
-short wait_input(int fd, std::int64_t now, std::int64_t until_ns) noexcept {
+// Wait for input or until `until_ns`, at most one slice; with `blocked` (the last send found the
+// transport full) also for room to send, and never less than a slice: a real-time thread that
+// retried at once would spin and starve the kernel worker that drains the transport (a pty's).
+// Returns poll's revents (0 on timeout).
+short wait_input(int fd, std::int64_t now, std::int64_t until_ns, bool blocked = false) noexcept {
   std::int64_t wait = kPollSliceNs;
-  if (until_ns > 0 && until_ns - now < wait) wait = until_ns - now;
+  if (!blocked && until_ns > 0 && until_ns - now < wait) wait = until_ns - now;
   if (wait < 0) wait = 0;
-  pollfd p{fd, POLLIN, 0};
+  pollfd p{fd, static_cast<short>(blocked ? POLLIN | POLLOUT : POLLIN), 0};
   const timespec ts = detail::to_timespec(wait);
   if (::ppoll(&p, 1, &ts, nullptr) <= 0) return 0;
   return p.revents;
@@ -218,7 +221,7 @@ void CanModuleEmulator::run(const std::atomic<bool>& stop) {
   while (!stop.load(std::memory_order_acquire)) {
     std::int64_t now = detail::monotonic_ns();
     const std::int64_t due = head_ != tail_ ? queue_[head_].due_ns : 0;
-    const short ev = wait_input(fd_, now, due);
+    const short ev = wait_input(fd_, now, due, blocked_ && head_ != tail_);
     bool got = false;
     for (;;) {
       canfd_frame f{};
@@ -368,11 +371,15 @@ void CanModuleEmulator::on_sync(std::uint8_t counter, std::int64_t now) noexcept
 }
 
 void CanModuleEmulator::flush(std::int64_t now) noexcept {
+  blocked_ = false;
   while (head_ != tail_ && queue_[head_].due_ns <= now) {
     const Pending& p = queue_[head_];
     const ssize_t r = ::send(fd_, &p.frame, p.size, MSG_DONTWAIT | MSG_NOSIGNAL);
     if (r < 0 && errno == EINTR) continue;
-    if (r < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) return;
+    if (r < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) {
+      blocked_ = true;
+      return;
+    }
     if (r == static_cast<ssize_t>(p.size))
       bank_.stats().replies_sent.fetch_add(1, std::memory_order_relaxed);
     head_ = (head_ + 1) % queue_.size();
@@ -391,7 +398,7 @@ void SerialModuleEmulator::run(const std::atomic<bool>& stop) {
   while (!stop.load(std::memory_order_acquire)) {
     std::int64_t now = detail::monotonic_ns();
     const std::int64_t due = head_ != tail_ ? queue_[head_].due_ns : 0;
-    const short ev = wait_input(fd_, now, due);
+    const short ev = wait_input(fd_, now, due, blocked_ && head_ != tail_);
     bool got = false;
     for (;;) {
       if (rx_len_ == rx_.size()) rx_len_ = 0;  // overrun: drop everything (a resync follows)
@@ -544,11 +551,15 @@ void SerialModuleEmulator::handle(std::int64_t read_ns) noexcept {
 }
 
 void SerialModuleEmulator::flush(std::int64_t now) noexcept {
+  blocked_ = false;
   while (head_ != tail_ && queue_[head_].due_ns <= now) {
     Pending& q = queue_[head_];
     const ssize_t r = ::write(fd_, q.bytes.data() + q.off, q.len - q.off);
     if (r < 0 && errno == EINTR) continue;
-    if (r <= 0) return;  // EAGAIN: try again later
+    if (r <= 0) {  // EAGAIN: the line is full; wait for room (run())
+      blocked_ = true;
+      return;
+    }
     q.off += static_cast<std::size_t>(r);
     if (q.off < q.len) return;
     bank_.stats().replies_sent.fetch_add(1, std::memory_order_relaxed);

@@ -435,7 +435,7 @@ test::WalkSetup vm_deployment(double duration, std::uint32_t domain) {
   s.duration = duration;
   s.stale_timeout = 0;
   s.read_budget = 0;
-  s.command_timeout = 0.1;
+  s.command_timeout = 0.5;
   s.observer = true;
   s.priority = 80;
   s.robot_priority = 70;

@@ -54,7 +54,7 @@ int main(int argc, char** argv) {
                "modules would (drivers/PROTOCOL.md), on a CAN interface or a pseudo-terminal"};
   std::string scene_path, can_if, link;
   bool fd = false, pty = false, no_faults = false, ignore_host_faults = false;
-  double latency_ms = 0.0, loss = 0.0, bit_error = 0.0, timeout_ms = 100.0, duration = 0.0,
+  double latency_ms = 0.0, loss = 0.0, bit_error = 0.0, timeout_ms = 500.0, duration = 0.0,
          status_every = 0.0, max_gap = 1.0;
   // The bus the modules sit on (wire times) and their clocks.
   double bitrate = 1e6, data_bitrate = 5e6, return_delay_us = 20.0, drift_ppm = 30.0;

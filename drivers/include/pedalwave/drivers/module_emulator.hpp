@@ -92,7 +92,7 @@ struct BusTimingConfig {
 struct EmulatorConfig {
   int joints = 5;                                 // modules, nodes/IDs 1…joints [-]
   bool fd = false;                                // CAN: FD frame set (command groups, FD replies)
-  std::int64_t command_timeout_ns = 100'000'000;  // command lifetime [ns]
+  std::int64_t command_timeout_ns = 500'000'000;  // command lifetime [ns] (> the host's stale_timeout)
   BusTimingConfig bus{};
   // Each module's free-running microsecond clock: reading at the emulator's first SYNC [µs] and
   // rate error [ppm] (a crystal: tens of ppm), (N-1).
@@ -221,6 +221,7 @@ class CanModuleEmulator {
   WireClock wire_;
   std::array<Pending, 256> queue_{};  // ring of answers waiting for their due time
   std::size_t head_ = 0, tail_ = 0;
+  bool blocked_ = false;  // the last send found the transport full
 };
 
 // Serial (DYNAMIXEL 2.0) front end on a pty master or a tty.
@@ -253,6 +254,7 @@ class SerialModuleEmulator {
   std::size_t rx_len_ = 0;
   std::array<Pending, 256> queue_{};
   std::size_t head_ = 0, tail_ = 0;
+  bool blocked_ = false;  // the last write found the line full
 };
 
 }  // namespace pedalwave::drivers

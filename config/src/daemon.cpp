@@ -164,7 +164,7 @@ void read_telemetry(const Reader& r, DaemonConfig& c) {
 //   stale_timeout  = max(0.25 s, 50 periods): above a loaded host's worst stall (the soak tool
 //                    measured a 99 ms wake-up of the SCHED_FIFO loop on a shared 2-core machine),
 //                    far below a walking robot's time to harm itself (its modules hold their PD);
-//   module silent  = a bus: max(3, 50 ms of cycles) consecutive missing replies (a late reply is
+//   module silent  = a bus: 0.2 s of missing replies in a row, by time (a late reply is
 //                    a missing one); the in-process plant: 3 (it never drops a reply).
 void derive_timeouts(const Reader& r, DaemonConfig& c) {
   runtime::RuntimeConfig& rc = c.runtime;
@@ -203,10 +203,13 @@ void derive_timeouts(const Reader& r, DaemonConfig& c) {
   std::snprintf(buf, sizeof buf, ", stale_timeout %g s (%s)", rc.stale_timeout,
                 given_stale ? "given" : "derived: max(0.25 s, 50 periods)");
   note += buf;
-  c.observer_missing_cycles =
-      d.kind == DriverKind::kSim ? 3 : std::max(3, static_cast<int>(std::ceil(0.05 * rc.rt.rate_hz)));
-  std::snprintf(buf, sizeof buf, ", module silent after %d missing replies (%.0f ms)",
-                c.observer_missing_cycles, 1e3 * c.observer_missing_cycles * period);
+  c.observer_missing_cycles = 3;
+  c.observer_missing_time = d.kind == DriverKind::kSim ? 0.0 : 0.2;
+  if (c.observer_missing_time > 0)
+    std::snprintf(buf, sizeof buf, ", module silent after %g s of missing replies",
+                  c.observer_missing_time);
+  else
+    std::snprintf(buf, sizeof buf, ", module silent after %d missing replies", c.observer_missing_cycles);
   note += buf;
   if (window > 0) {
     std::snprintf(buf, sizeof buf, "; the modules' command lifetime should exceed %g s",

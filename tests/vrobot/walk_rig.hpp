@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <cstdint>
 #include <cstdio>
 #include <memory>
@@ -70,7 +71,7 @@ struct WalkSetup {
   bool lockstep = false;       // lockstep loop clock (kSim and the bus model only)
   double k_c = 0.0;            // adaptive gain
   double h = 0.0;              // kSim: integrator step override [s]; 0 = the scene's
-  double command_timeout = 0.05;  // modules' command lifetime [s]
+  double command_timeout = 0.5;   // modules' command lifetime [s] (> the derived stale_timeout)
   int cpu = -1;                // pin the loop thread to this CPU; −1 = no pinning
   bool observer = true;        // the onboard observer in the cycle
   // The deployment path as configured for a robot: SCHED_FIFO for the loop (priority) and for the
@@ -260,8 +261,8 @@ class BusModelDriver final : public drivers::Driver {
   // report_timing = false hands the same data on as FeedbackTiming::kNominal (no sample times, no
   // applied commands): what the observer assumed before it used the modules' timing records.
   BusModelDriver(vrobot::SimulationPlant& plant, std::int64_t delay_ns, double drift_ppm = 40.0,
-                 bool report_timing = true)
-      : plant_(plant), delay_ns_(delay_ns), report_timing_(report_timing),
+                 bool report_timing = true, double loss = 0.0)
+      : plant_(plant), delay_ns_(delay_ns), report_timing_(report_timing), loss_(loss),
         bank_(config(plant.joints(), drift_ppm), plant) {
     seq_of_tag_.fill(drivers::kNoCommandSeq);
   }
@@ -286,6 +287,18 @@ class BusModelDriver final : public drivers::Driver {
       out.beta_dot[k] = m.beta_dot;
       out.deflection[k] = m.deflection;
       out.status[k] = m.status;
+      if (loss_ > 0 && std::uniform_real_distribution<double>(0, 1)(rng_) < loss_) {
+        // A lost reply: the joint keeps its previous values, marked missing, no timing.
+        out.beta[k] = last_.beta[k];
+        out.beta_dot[k] = last_.beta_dot[k];
+        out.deflection[k] = last_.deflection[k];
+        out.status[k] = drivers::kStatusMissing;
+        out.sample_ns[k] = 0;
+        continue;
+      }
+      last_.beta[k] = out.beta[k];
+      last_.beta_dot[k] = out.beta_dot[k];
+      last_.deflection[k] = out.deflection[k];
       const drivers::wire::ModuleTiming& t = bank_.timing(j);
       out.sample_ns[k] = clocks_[k].update(t.sample_us, now_ns);
       out.applied_ns[k] = clocks_[k].to_host(t.sample_us - t.applied_age_us);
@@ -338,6 +351,9 @@ class BusModelDriver final : public drivers::Driver {
   vrobot::SimulationPlant& plant_;
   std::int64_t delay_ns_;
   bool report_timing_;
+  double loss_;
+  std::mt19937 rng_{17};
+  drivers::Feedback last_{};
   drivers::ModuleBank bank_;
   drivers::DriverCounters counters_{};
   std::array<drivers::ModuleClock, drivers::kMaxJoints> clocks_{};
@@ -350,13 +366,13 @@ class BusModelDriver final : public drivers::Driver {
 // The runtime (lockstep loop clock) against the bus model: deterministic. delay: the command
 // transport delay as a fraction of the period (0: applied at the sample instant).
 inline WalkResult walk_bus_model(WalkSetup s, const model::Scene& scene, double delay,
-                                 bool report_timing = true) {
+                                 bool report_timing = true, double loss = 0.0) {
   s.lockstep = true;
   if (s.transport == Transport::kSim) s.transport = Transport::kCanFd;
   vrobot::PlantOptions po;
   po.record_capacity = static_cast<std::size_t>(s.duration * 100 * 2) + 1000;
   vrobot::SimulationPlant plant(scene, po);
-  BusModelDriver drv(plant, std::llround(delay * 1e9 / s.rate_hz), 40.0, report_timing);
+  BusModelDriver drv(plant, std::llround(delay * 1e9 / s.rate_hz), 40.0, report_timing, loss);
   WalkResult r;
   r.daemon = app::run_daemon(daemon_config(s, scene), quiet(&drv));
   r.plant = plant.progress();

@@ -177,6 +177,7 @@ std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg
     op.robot.K.assign(static_cast<std::size_t>(op.robot.N - 1), op.robot.K_all);
   op.period = 1.0 / cfg.runtime.rt.rate_hz;
   op.missing_cycles = cfg.observer_missing_cycles;
+  op.missing_time = cfg.observer_missing_time;
   if (cfg.driver.kind == config::DriverKind::kSim) {
     const model::Scene& sc = cfg.driver.scene;
     if (sc.ground_on) op.ground = sc.ground;  // nominal terrain of the onboard body model

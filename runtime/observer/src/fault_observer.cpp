@@ -48,6 +48,10 @@ struct FaultObserver::Joint {
   double beta = 0, beta_dot = 0, defl = 0;
   std::int64_t sample_ns = 0;                      // its module sample time [ns] (kModule)
   std::uint64_t applied_seq = drivers::kNoCommandSeq;  // the command in effect from it on
+  double t_prev = 0;                               // its observer time (elapsed_) [s]
+  std::uint64_t nominal_seq = 0;                   // kNominal: seq of the command acting from it
+  int gap = 0;                                     // lost samples since it [-]
+  std::array<double, FaultObserver::kMaxGap> gap_t{};  // their observer times [s]
   // Residual regressors filtered like r: [u, K·deflection, β̇, 1]
   std::array<double, 4> phi{};
   // Classification window
@@ -63,6 +67,7 @@ struct FaultObserver::Joint {
   Eigen::Vector4d g_nom = Eigen::Vector4d::Zero();
   // Checks
   int missing_run = 0;
+  double missing_s = 0;  // time of the missing run [s]
   std::uint64_t stale_hist = 0;
   int hold_beta = 0, hold_defl = 0, hold_rate = 0;
   double ref_min = 0, ref_max = 0, beta_min = 0, beta_max = 0, rate_int = 0;
@@ -119,6 +124,8 @@ void validate(const ObserverParams& p) {
   pos("beta_dot_max", p.beta_dot_max);
   pos("deflection_max", p.deflection_max);
   if (p.missing_cycles < 1) fail("missing_cycles", p.missing_cycles, ">= 1");
+  if (!(p.missing_time >= 0) || !std::isfinite(p.missing_time))
+    fail("missing_time", p.missing_time, ">= 0 [s] (0: count missing_cycles)");
   if (p.stale_window < 1 || p.stale_window > 64) fail("stale_window", p.stale_window, "1 … 64 cycles");
   if (p.stale_count < 1 || p.stale_count > p.stale_window) fail("stale_count", p.stale_count, "1 … stale_window");
   if (p.hold_cycles < 2) fail("hold_cycles", p.hold_cycles, ">= 2");
@@ -206,18 +213,22 @@ void FaultObserver::check_frame(const Feedback& fb, double t) {
 }
 
 // Data validity of joint j this cycle: plausibility, missing, stale. false = do not integrate.
-bool FaultObserver::check_joint(const Feedback& fb, int j, double t) {
+bool FaultObserver::check_joint(const Feedback& fb, int j, double t, double dt) {
   const auto k = static_cast<std::size_t>(j);
   Joint& s = jt_[k];
   const double b = fb.beta[k], bd = fb.beta_dot[k], d = fb.deflection[k];
   const std::uint16_t st = fb.status[k];
   // Missing: the module did not answer this cycle (values are the driver's stale copy).
   if (st & drivers::kStatusMissing) {
-    if (++s.missing_run >= p_.missing_cycles)
-      latch(FaultClass::kModuleSilent, j, t, s.missing_run, p_.missing_cycles, 0.0);
+    ++s.missing_run;
+    s.missing_s += dt;
+    if (p_.missing_time > 0 ? s.missing_s >= p_.missing_time : s.missing_run >= p_.missing_cycles)
+      latch(FaultClass::kModuleSilent, j, t, p_.missing_time > 0 ? s.missing_s : s.missing_run,
+            p_.missing_time > 0 ? p_.missing_time : p_.missing_cycles, 0.0);
     return false;
   }
   s.missing_run = 0;
+  s.missing_s = 0;
   // Stale / out of order, counted over a sliding window.
   const bool stale = (st & (drivers::kStatusStale | drivers::kStatusOutOfOrder)) != 0;
   const std::uint64_t mask = p_.stale_window >= 64 ? ~0ull : ((1ull << p_.stale_window) - 1);
@@ -270,7 +281,7 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
   const auto k = static_cast<std::size_t>(j);
   Joint& s = jt_[k];
   const double dt = iv.dt;
-  const Command& cmd = iv.c1 ? *iv.c1 : *iv.c0;  // the newest command of the interval
+  const Command& cmd = *iv.cmd[static_cast<std::size_t>(iv.pieces - 1)];  // the newest command
   const double b1 = fb.beta[k], bd1 = fb.beta_dot[k], d1 = fb.deflection[k];
   const double b0 = s.beta, bd0 = s.beta_dot, d0 = s.defl;
   const double K = K_[k];
@@ -287,14 +298,18 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
     // After an overrun the gap spans skipped periods: the trapezoid is no longer exact over it and
     // the module's set-points moved meanwhile — pause the verdicts as for a command step.
     if (dt > 1.5 * p_.period) s.cmd_settle = p_.command_settle;
+  } else if (iv.gap) {
+    // Across lost samples the commands' application times are partly estimated: no verdicts.
+    s.cmd_settle = p_.command_settle;
   } else {
     // Measured timing: the trapezoid's error over this interval is the module PD's fast response
     // to the command change inside it: β̇ moves by ≈ Δc0 / max(k_d, J/dt) within ~J/k_d, so
     // |error| ≲ dt/2 · |Δc0| / max(k_d, J/dt). Verdicts pause only while that bound exceeds a
     // quarter of the threshold (a start, hold or resume; a command after many skipped periods).
-    const double dc0 = iv.c1 ? std::abs(law_offset(*iv.c1, k) - law_offset(*iv.c0, k)) : 0.0;
+    const Command& c_first = *iv.cmd[0];
+    const double dc0 = iv.pieces > 1 ? std::abs(law_offset(cmd, k) - law_offset(c_first, k)) : 0.0;
     const double stiff = std::max(cmd.kd[k], J_ / dt);
-    const bool off_step = iv.c1 && iv.c1->torque_off != iv.c0->torque_off;
+    const bool off_step = iv.pieces > 1 && cmd.torque_off != c_first.torque_off;
     if (off_step || 0.5 * dt * dc0 / stiff > 0.25 * p_.consistency_threshold)
       s.cmd_settle = p_.command_settle;
   }
@@ -351,20 +366,32 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
     latch(FaultClass::kDeflectionStuck, j, t, s.beta_max - s.beta_min, p_.hold_motion, d1);
 
   // ---- Momentum residual (file comment of the header) ----
-  // ∫u dt: one piece with the command in effect since the previous sample, or two when the module
-  // applied a new command inside the interval (at tau1); β, β̇ at the split from the cubic Hermite
-  // interpolant of the two samples (the k_d term then telescopes: exact whatever the split).
+  // ∫u dt: one piece with the command in effect since the previous sample, or one piece per
+  // command when the module applied new ones inside the interval; β, β̇ at each split from the
+  // cubic Hermite interpolant of the two samples (the k_d terms telescope: exact whatever the
+  // splits, so the interval's quantization noise cancels against its neighbours' as it must).
   double Iu = 0.0;  // ∫u dt [N·m·s]
-  if (!iv.c1) {
-    Iu = law_integral(*iv.c0, k, dt, b0, bd0, b1, bd1, p_.u_max);
+  if (iv.pieces == 1) {
+    Iu = law_integral(*iv.cmd[0], k, dt, b0, bd0, b1, bd1, p_.u_max);
   } else {
-    const double u = iv.tau1 / dt, u2 = u * u, u3 = u2 * u;
-    const double bm = (2 * u3 - 3 * u2 + 1) * b0 + (u3 - 2 * u2 + u) * dt * bd0 +
-                      (-2 * u3 + 3 * u2) * b1 + (u3 - u2) * dt * bd1;
-    const double bdm = (6 * u2 - 6 * u) / dt * b0 + (3 * u2 - 4 * u + 1) * bd0 +
-                       (-6 * u2 + 6 * u) / dt * b1 + (3 * u2 - 2 * u) * bd1;
-    Iu = law_integral(*iv.c0, k, iv.tau1, b0, bd0, bm, bdm, p_.u_max) +
-         law_integral(*iv.c1, k, dt - iv.tau1, bm, bdm, b1, bd1, p_.u_max);
+    auto hermite = [&](double ts, double& bm, double& bdm) {
+      const double u = ts / dt, u2 = u * u, u3 = u2 * u;
+      bm = (2 * u3 - 3 * u2 + 1) * b0 + (u3 - 2 * u2 + u) * dt * bd0 + (-2 * u3 + 3 * u2) * b1 +
+           (u3 - u2) * dt * bd1;
+      bdm = (6 * u2 - 6 * u) / dt * b0 + (3 * u2 - 4 * u + 1) * bd0 + (-6 * u2 + 6 * u) / dt * b1 +
+            (3 * u2 - 2 * u) * bd1;
+    };
+    double ta = 0.0, ba = b0, bda = bd0;
+    for (int i = 0; i < iv.pieces; ++i) {
+      const auto iu = static_cast<std::size_t>(i);
+      const double tb = i + 1 < iv.pieces ? iv.start[iu + 1] : dt;
+      double bb = b1, bdb = bd1;
+      if (i + 1 < iv.pieces) hermite(tb, bb, bdb);
+      Iu += law_integral(*iv.cmd[iu], k, tb - ta, ba, bda, bb, bdb, p_.u_max);
+      ta = tb;
+      ba = bb;
+      bda = bdb;
+    }
   }
   const double Is = dt * K * 0.5 * (d0 + d1);              // ∫K·deflection dt
   const double Ib = p_.motor_viscous * (b1 - b0);          // ∫b_m β̇ dt
@@ -451,33 +478,68 @@ void FaultObserver::classify(int j, double t) {
 }
 
 // The interval from joint j's previous valid sample to this one: its length and the commands that
-// acted over it. false = it cannot be integrated exactly (timing record missing, the command no
-// longer kept, two commands applied inside it): the residual skips it.
+// acted over it, in turn. false = it cannot be integrated (timing record missing, a command no
+// longer kept, more than kMaxGap + 1 commands): the residual skips it.
+//   kNominal: the command written in cycle i acts over [t_i, t_i+1] (the in-process plant); over a
+//     gap of lost samples the cycles' times are the observer's own (exact).
+//   kModule: the command in effect at the previous sample, then each newer one from its
+//     application; the module reports the last application time, earlier ones inside a gap are
+//     spaced evenly back from it (their samples were lost).
 bool FaultObserver::make_interval(const Feedback& fb, const CommandHistory& cmds, int j, double dt,
                                   Interval& iv) {
   const auto k = static_cast<std::size_t>(j);
   const Joint& s = jt_[k];
+  iv.gap = s.gap > 0;
   if (fb.timing == drivers::FeedbackTiming::kNominal) {
-    iv = Interval{dt, &cmds.last(), nullptr, 0.0, true};
-    return true;
+    iv.nominal = true;
+    if (s.gap == 0) {  // the common case, as before the timing records existed
+      iv.dt = dt;
+      iv.pieces = 1;
+      iv.cmd[0] = &cmds.last();
+      iv.start[0] = 0.0;
+      return true;
+    }
+    iv.dt = elapsed_ - s.t_prev;
+    const std::uint64_t first = s.nominal_seq, last = cmds.last().seq;
+    if (last < first || last - first > static_cast<std::uint64_t>(s.gap)) return false;
+    iv.pieces = static_cast<int>(last - first) + 1;
+    for (int i = 0; i < iv.pieces; ++i) {
+      const auto iu = static_cast<std::size_t>(i);
+      iv.cmd[iu] = cmds.find(first + iu);
+      if (iv.cmd[iu] == nullptr) return false;
+      iv.start[iu] = i == 0 ? 0.0 : s.gap_t[iu - 1] - s.t_prev;
+    }
+    return iv.dt > 0;
   }
   const std::int64_t t1 = fb.sample_ns[k];
   if (t1 == 0 || s.sample_ns == 0 || t1 <= s.sample_ns) return false;
   iv.nominal = false;
   iv.dt = static_cast<double>(t1 - s.sample_ns) * 1e-9;
-  iv.c0 = cmds.find(s.applied_seq);
-  iv.c1 = nullptr;
-  iv.tau1 = 0.0;
-  if (iv.c0 == nullptr) return false;
+  iv.pieces = 1;
+  iv.cmd[0] = cmds.find(s.applied_seq);
+  iv.start[0] = 0.0;
+  if (iv.cmd[0] == nullptr) return false;
   const std::uint64_t a = fb.applied_seq[k];
   if (a == s.applied_seq) return true;
-  // One new command inside the interval (the host writes one per cycle, the modules sample once
-  // per SYNC); two or more (a late command overtaken by the next) cannot be split exactly.
-  if (a != drivers::kNoCommandSeq && s.applied_seq != drivers::kNoCommandSeq && a != s.applied_seq + 1)
-    return false;
-  iv.c1 = cmds.find(a);
-  if (iv.c1 == nullptr) return false;
-  iv.tau1 = std::clamp(static_cast<double>(fb.applied_ns[k] - s.sample_ns) * 1e-9, 0.0, iv.dt);
+  const double t_last = std::clamp(static_cast<double>(fb.applied_ns[k] - s.sample_ns) * 1e-9, 0.0, iv.dt);
+  // The commands applied since: from the old one's successor to the reported one. "No command"
+  // on either side is a single switch.
+  std::uint64_t n = 1;
+  if (a != drivers::kNoCommandSeq && s.applied_seq != drivers::kNoCommandSeq) {
+    if (a < s.applied_seq) return false;
+    n = a - s.applied_seq;
+  }
+  if (n > static_cast<std::uint64_t>(kMaxGap + 1)) return false;
+  const double spacing = iv.dt / static_cast<double>(s.gap + 1);
+  for (std::uint64_t i = 0; i < n; ++i) {
+    const std::uint64_t seq = n == 1 ? a : s.applied_seq + 1 + i;
+    const auto iu = static_cast<std::size_t>(i + 1);
+    iv.cmd[iu] = cmds.find(seq);
+    if (iv.cmd[iu] == nullptr) return false;
+    const double back = static_cast<double>(n - 1 - i) * spacing;
+    iv.start[iu] = std::clamp(t_last - back, iv.start[iu - 1], iv.dt);
+  }
+  iv.pieces = static_cast<int>(n) + 1;
   return true;
 }
 
@@ -491,10 +553,19 @@ int FaultObserver::observe(const Feedback& fb, const CommandHistory& cmds, doubl
   for (int j = 0; j < J; ++j) {
     const auto k = static_cast<std::size_t>(j);
     Joint& s = jt_[k];
-    const bool ok = check_joint(fb, j, t) && frame_ok_;
+    const bool lost = (fb.status[k] & drivers::kStatusMissing) != 0 ||
+                      (module_timing && fb.sample_ns[k] == 0);
+    const bool ok = check_joint(fb, j, t, dt) && frame_ok_ && !lost;
     all_ok &= ok;
     if (!ok) {
-      if (frame_ok_) s.prev_valid = false;  // a repeated frame keeps the previous sample
+      // A lost sample is bridged: the next valid one integrates over the whole gap, so the
+      // differenced terms (k_d Δβ, J Δβ̇) keep telescoping. Anything else restarts the residual.
+      if (lost && frame_ok_ && s.prev_valid && s.gap < kMaxGap) {
+        s.gap_t[static_cast<std::size_t>(s.gap++)] = elapsed_;
+      } else if (frame_ok_) {
+        s.prev_valid = false;  // a repeated frame keeps the previous sample
+        s.gap = 0;
+      }
       continue;
     }
     // The command in effect at this sample (kModule: the one the module says it applied).
@@ -515,6 +586,9 @@ int FaultObserver::observe(const Feedback& fb, const CommandHistory& cmds, doubl
     else if (s.prev_valid) ++intervals_skipped_;
     s.sample_ns = module_timing ? fb.sample_ns[k] : 0;
     s.applied_seq = fb.applied_seq[k];
+    s.t_prev = elapsed_;
+    s.nominal_seq = cmds.last().seq + 1;  // kNominal: this cycle's command acts from here
+    s.gap = 0;
     // Link-side filters on α = β − deflection and β̇.
     const double alpha = fb.beta[k] - fb.deflection[k];
     const double w = 2.0 * std::numbers::pi * p_.accel_filter_hz;

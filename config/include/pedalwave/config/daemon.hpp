@@ -53,7 +53,8 @@ struct DaemonConfig {
   control::GaitControllerParams controller;
   DriverSelection driver;
   bool observer = true;
-  int observer_missing_cycles = 3;    // consecutive missing replies → module_silent [-] (derived)
+  int observer_missing_cycles = 3;    // consecutive missing replies → module_silent [-]
+  double observer_missing_time = 0.0; // a bus: missing replies for this long → module_silent [s] (derived)
   // How the loop's timeouts were chosen (given or derived from the rate and the bus), for the
   // start report: read deadline, stale_timeout, module-silent window.
   std::string timing_note;

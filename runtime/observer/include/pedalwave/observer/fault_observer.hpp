@@ -90,6 +90,8 @@ struct ObserverParams {
   double beta_dot_max = 60.0;   // |β̇| plausible range [rad/s]
   double deflection_max = 1.0;  // |deflection| plausible range (spring travel) [rad]
   int missing_cycles = 3;       // consecutive kStatusMissing (or frozen frames) → silent [-]
+  double missing_time = 0.0;    // > 0: missing replies in a row for this long → silent [s] (a bus:
+                                // periods skipped after an overrun count by their time); 0: cycles
   int stale_count = 3;          // stale/out-of-order/repeated cycles within stale_window → fault [-]
   int stale_window = 50;        // [cycles]
   int hold_cycles = 60;         // bit-identical β samples → encoder stuck [-]
@@ -197,14 +199,17 @@ class FaultObserver {
   void latch(FaultClass c, int joint, double t, double value, double threshold, double estimate);
   bool joint_latched(int j) const;
   void check_frame(const drivers::Feedback& fb, double t);
-  bool check_joint(const drivers::Feedback& fb, int j, double t);
+  bool check_joint(const drivers::Feedback& fb, int j, double t, double dt);
   // One sample interval of a joint: its length and the commands that acted over it.
+  // Across lost replies it spans several periods and several commands (pieces).
+  static constexpr int kMaxGap = 8;          // lost samples bridged [-]
   struct Interval {
     double dt = 0.0;                         // length [s]
-    const drivers::Command* c0 = nullptr;    // in effect from the interval's start
-    const drivers::Command* c1 = nullptr;    // applied tau1 after the start (nullptr: none)
-    double tau1 = 0.0;                       // [s]
+    int pieces = 1;                          // commands acting in turn, 1 … kMaxGap + 2
+    std::array<const drivers::Command*, kMaxGap + 2> cmd{};  // piece i's command
+    std::array<double, kMaxGap + 2> start{};                 // piece i from this far in [s]
     bool nominal = true;                     // FeedbackTiming::kNominal
+    bool gap = false;                        // spans lost samples
   };
   bool make_interval(const drivers::Feedback& fb, const drivers::CommandHistory& cmds, int j,
                      double dt, Interval& iv);

@@ -123,7 +123,7 @@ TEST(Vcan, ClassicCycleOnRealSocketWithKernelTimestamps) {
   EXPECT_EQ(c.missing + c.late + c.duplicate + c.out_of_order + c.checksum + c.malformed +
                 c.bus_errors + c.tx_dropped + c.rx_dropped,
             0u);
-  EXPECT_EQ(c.frames_rx, 800u);  // the receive filter lets only our feedback ids through
+  EXPECT_EQ(c.frames_rx, 1600u);  // the filter lets only our feedback and timing ids through
   pedalwave::test::wait_for([&] { return rig.emu->stats().commands >= 800u; }, 10'000 * kMs);
   EXPECT_EQ(rig.emu->stats().commands, 800u);
 }

@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -207,3 +208,4 @@ INSTANTIATE_TEST_SUITE_P(
         BusFault{model::FaultType::kDeflectionBias, 2, 0.05, runtime::FaultClass::kDeflectionBias, "deflection_bias"},
         BusFault{model::FaultType::kModuleSilent, 4, 0.0, runtime::FaultClass::kModuleSilent, "silent_module"}),
     [](const auto& param_info) { return std::string(param_info.param.name); });
+

@@ -227,6 +227,8 @@ void SerialDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns) no
     case FrameAge::kLate:
       ++counters_.late;
       status_[ju] |= kStatusLate;
+      late_timing_[ju] = fb.timing;  // still says when the module applied its command then
+      have_late_[ju] = true;
       break;
     case FrameAge::kOutOfOrder:
       ++counters_.out_of_order;
@@ -253,6 +255,7 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
   for (int j = 0; j < joints_; ++j) {
     drivers::begin_cycle(rc_[static_cast<std::size_t>(j)]);
     status_[static_cast<std::size_t>(j)] = 0;
+    have_late_[static_cast<std::size_t>(j)] = false;
   }
   fresh_count_ = 0;
   stamp_ns_ = 0;
@@ -307,6 +310,12 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
     const auto ju = static_cast<std::size_t>(j);
     std::uint16_t st = status_[ju];
     out.sample_ns[ju] = 0;
+    out.late_applied_ns[ju] = 0;
+    if (have_late_[ju] && clocks_[ju].started() && !late_timing_[ju].no_command) {
+      const wire::ModuleTiming& lt = late_timing_[ju];
+      out.late_applied_ns[ju] = clocks_[ju].to_host(lt.sample_us - lt.applied_age_us);
+      out.late_applied_seq[ju] = seq_of_tag_[lt.applied_tag];
+    }
     if (!rc_[ju].fresh) {
       st |= kStatusMissing;
       ++counters_.missing;

@@ -329,6 +329,10 @@ void SocketCanDriver::take_feedback(int j, const can::ModuleFeedback& fb,
     case FrameAge::kLate:
       ++counters_.late;
       status_[ju] |= kStatusLate;
+      if (t) {
+        late_timing_[ju] = *t;
+        have_late_[ju] = true;
+      }
       break;
     case FrameAge::kOutOfOrder:
       ++counters_.out_of_order;
@@ -353,9 +357,14 @@ void SocketCanDriver::handle_timing(const can_frame& f, std::int64_t stamp_ns) n
     return;
   }
   const auto ju = static_cast<std::size_t>(j);
-  if (echo != (sync_counter_ & can::kClassicCounterMask) || stamp_ns > deadline_ns_ ||
-      have_timing_[ju])
-    return;  // an older SYNC's, a late or a repeated record: no timing for this cycle
+  if (echo != (sync_counter_ & can::kClassicCounterMask) || stamp_ns > deadline_ns_) {
+    // An older SYNC's or a late record: not this cycle's timing, but it still says when the
+    // module applied its command then (the observer bridges the lost sample with it).
+    late_timing_[ju] = t;
+    have_late_[ju] = true;
+    return;
+  }
+  if (have_timing_[ju]) return;  // a repeated record
   timing_[ju] = t;
   have_timing_[ju] = true;
 }
@@ -367,6 +376,7 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
     drivers::begin_cycle(rc_[static_cast<std::size_t>(j)]);
     status_[static_cast<std::size_t>(j)] = 0;
     have_timing_[static_cast<std::size_t>(j)] = false;
+    have_late_[static_cast<std::size_t>(j)] = false;
   }
   fresh_count_ = 0;
   stamp_ns_ = 0;
@@ -409,6 +419,13 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
     const auto ju = static_cast<std::size_t>(j);
     std::uint16_t st = status_[ju];
     out.sample_ns[ju] = 0;
+    out.late_applied_ns[ju] = 0;
+    const unsigned tag_mask = fd_mode_ ? 0xFFu : can::kClassicCounterMask;
+    if (have_late_[ju] && clocks_[ju].started() && !late_timing_[ju].no_command) {
+      const wire::ModuleTiming& lt = late_timing_[ju];
+      out.late_applied_ns[ju] = clocks_[ju].to_host(lt.sample_us - lt.applied_age_us);
+      out.late_applied_seq[ju] = seq_of_tag_[lt.applied_tag & tag_mask];
+    }
     if (!rc_[ju].fresh) {
       st |= kStatusMissing;
       ++counters_.missing;

@@ -51,6 +51,10 @@ struct FaultObserver::Joint {
   double t_prev = 0;                               // its observer time (elapsed_) [s]
   std::uint64_t nominal_seq = 0;                   // kNominal: seq of the command acting from it
   int gap = 0;                                     // lost samples since it [-]
+  // Application times learnt from late answers since it (kModule) [-, ns]
+  std::array<std::uint64_t, FaultObserver::kMaxGap> known_seq{};
+  std::array<std::int64_t, FaultObserver::kMaxGap> known_ns{};
+  int known = 0;
   std::array<double, FaultObserver::kMaxGap> gap_t{};  // their observer times [s]
   // Residual regressors filtered like r: [u, K·deflection, β̇, 1]
   std::array<double, 4> phi{};
@@ -536,8 +540,12 @@ bool FaultObserver::make_interval(const Feedback& fb, const CommandHistory& cmds
     const auto iu = static_cast<std::size_t>(i + 1);
     iv.cmd[iu] = cmds.find(seq);
     if (iv.cmd[iu] == nullptr) return false;
-    const double back = static_cast<double>(n - 1 - i) * spacing;
-    iv.start[iu] = std::clamp(t_last - back, iv.start[iu - 1], iv.dt);
+    // When it took effect: reported (the last one; a late answer's record), else spaced back.
+    double at = t_last - static_cast<double>(n - 1 - i) * spacing;
+    for (int q = 0; q < s.known && seq != a; ++q)
+      if (s.known_seq[static_cast<std::size_t>(q)] == seq)
+        at = static_cast<double>(s.known_ns[static_cast<std::size_t>(q)] - s.sample_ns) * 1e-9;
+    iv.start[iu] = std::clamp(at, iv.start[iu - 1], iv.dt);
   }
   iv.pieces = static_cast<int>(n) + 1;
   return true;
@@ -555,6 +563,10 @@ int FaultObserver::observe(const Feedback& fb, const CommandHistory& cmds, doubl
     Joint& s = jt_[k];
     const bool lost = (fb.status[k] & drivers::kStatusMissing) != 0 ||
                       (module_timing && fb.sample_ns[k] == 0);
+    if (module_timing && fb.late_applied_ns[k] != 0 && s.known < kMaxGap) {
+      s.known_seq[static_cast<std::size_t>(s.known)] = fb.late_applied_seq[k];
+      s.known_ns[static_cast<std::size_t>(s.known++)] = fb.late_applied_ns[k];
+    }
     const bool ok = check_joint(fb, j, t, dt) && frame_ok_ && !lost;
     all_ok &= ok;
     if (!ok) {
@@ -589,6 +601,7 @@ int FaultObserver::observe(const Feedback& fb, const CommandHistory& cmds, doubl
     s.t_prev = elapsed_;
     s.nominal_seq = cmds.last().seq + 1;  // kNominal: this cycle's command acts from here
     s.gap = 0;
+    s.known = 0;
     // Link-side filters on α = β − deflection and β̇.
     const double alpha = fb.beta[k] - fb.deflection[k];
     const double w = 2.0 * std::numbers::pi * p_.accel_filter_hz;

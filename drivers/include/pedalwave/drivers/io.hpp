@@ -59,6 +59,11 @@ struct Feedback {
   // two samples the previous sample's applied command acts until applied_ns, this one after.
   std::array<std::uint64_t, kMaxJoints> applied_seq{};
   std::array<std::int64_t, kMaxJoints> applied_ns{};
+  // A late answer of module j that came this cycle (to an older SYNC: its data is not used): the
+  // command it had applied and when [-, ns], (N-1); late_applied_ns = 0: none. Across a lost
+  // sample it tells the observer when the gap's intermediate command took effect.
+  std::array<std::uint64_t, kMaxJoints> late_applied_seq{};
+  std::array<std::int64_t, kMaxJoints> late_applied_ns{};
 };
 
 // One cycle's commands. The module applies, at its own internal rate until the next command,

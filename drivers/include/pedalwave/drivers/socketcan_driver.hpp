@@ -135,6 +135,8 @@ class SocketCanDriver final : public Driver {
   // Timing: this cycle's records, the module clocks, tag → Command::seq, the SYNC's lower bound.
   std::array<wire::ModuleTiming, kMaxJoints> timing_{};
   std::array<bool, kMaxJoints> have_timing_{};
+  std::array<wire::ModuleTiming, kMaxJoints> late_timing_{};  // a late answer's record this cycle
+  std::array<bool, kMaxJoints> have_late_{};
   std::array<ModuleClock, kMaxJoints> clocks_{};
   std::array<std::uint64_t, 256> seq_of_tag_{};
   std::int64_t sync_wire_ns_ = 0;   // SYNC frame's wire time at the configured bit rate [ns]

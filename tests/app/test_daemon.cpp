@@ -165,3 +165,18 @@ TEST(Daemon, AnUnwritableReportPathIsRefusedBeforeTheRun) {
         << e.what();
   }
 }
+
+// ---- exit status (DEPLOY.md "Service policy") ------------------------------------------------------
+
+TEST(DaemonExit, TheExitStatusSaysHowTheRunEnded) {
+  using runtime::ExitReason;
+  runtime::RunResult r;
+  const std::pair<ExitReason, int> table[] = {
+      {ExitReason::kCycleLimit, 0}, {ExitReason::kStopRequested, 0}, {ExitReason::kSignal, 0},
+      {ExitReason::kFault, 4},      {ExitReason::kEmergencyStop, 5}, {ExitReason::kNone, 1}};
+  for (const auto& [reason, code] : table) {
+    r.reason = reason;
+    EXPECT_EQ(app::exit_code(r), code) << runtime::to_string(reason);
+  }
+  EXPECT_EQ(app::kExitBadInput, 2);
+}

@@ -83,10 +83,10 @@ TEST(SoakVerdict, HealthyRunPassesAndEachFailureIsNamed) {
 
   Json early = Json::parse(kReport);
   early.set("exit", Json::object().set("reason", "fault").set("fault", "stale_sensors"));
-  v = sk::judge(early, 3, false);
+  v = sk::judge(early, 4, false);  // pedalwave_runtime's exit status for a fault
   EXPECT_EQ(v.code, sk::kExitFail);
   ASSERT_EQ(v.reasons.size(), 3u);
-  EXPECT_EQ(v.reasons[0], "the runtime exited with code 3");
+  EXPECT_EQ(v.reasons[0], "the runtime exited with code 4");
   EXPECT_NE(v.reasons[1].find("'fault'"), std::string::npos);
   EXPECT_NE(v.reasons[2].find("stale_sensors"), std::string::npos);
 

@@ -191,6 +191,19 @@ std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg
 #endif
 }
 
+int exit_code(const runtime::RunResult& r) noexcept {
+  using runtime::ExitReason;
+  switch (r.reason) {
+    case ExitReason::kCycleLimit:
+    case ExitReason::kStopRequested:
+    case ExitReason::kSignal: return kExitNormal;
+    case ExitReason::kFault: return kExitFault;
+    case ExitReason::kEmergencyStop: return kExitEmergencyStop;
+    case ExitReason::kNone: break;
+  }
+  return kExitInternal;
+}
+
 DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& opt) {
   DaemonResult res;
   std::ostringstream log;
@@ -201,7 +214,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   std::ofstream report;
   if (!opt.report_json.empty()) {
     report.open(opt.report_json);
-    if (!report) throw std::runtime_error("--report-json " + opt.report_json + ": cannot open the file for writing");
+    if (!report) throw BadInput("--report-json " + opt.report_json + ": cannot open the file for writing");
   }
   const OwnedDriver owned = opt.driver ? OwnedDriver{} : make_driver(cfg, cfg.duration);
   drivers::Driver* driver = opt.driver ? opt.driver : owned.top();

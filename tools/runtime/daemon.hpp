@@ -9,6 +9,7 @@
 
 #include <functional>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -44,6 +45,23 @@ struct DaemonResult {
   bool telemetry_active = false;
 };
 
+// Exit status of pedalwave_runtime (README, "Exit status of pedalwave_runtime"; DEPLOY.md,
+// "Service policy": the unit's RestartPreventExitStatus=2 4 5 never restarts after bad input, a
+// fault or an e-stop).
+inline constexpr int kExitNormal = 0;         // duration reached, SIGINT/SIGTERM or a stop request
+inline constexpr int kExitInternal = 1;       // internal error (an exception outside the loop)
+inline constexpr int kExitBadInput = 2;       // configuration or command line refused
+// 3 is reserved for the simulation tools: a run that went numerically wrong.
+inline constexpr int kExitFault = 4;          // a fault ended the run (safe stop)
+inline constexpr int kExitEmergencyStop = 5;  // an operator emergency stop ended the run
+int exit_code(const runtime::RunResult& r) noexcept;
+
+// A refused option found before anything starts (--report-json): kExitBadInput.
+struct BadInput : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Throws BadInput (before the run) for an unusable report path.
 DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& opt);
 
 // The onboard observer as the daemon wires it: the configured robot (one stiffness per joint),

@@ -1,6 +1,7 @@
 // pedalwave_runtime: the runtime daemon. Loads a configuration (config/runtime/*.yaml), validates
-// everything before starting, runs the fixed-rate loop until the duration, SIGINT/SIGTERM or a
-// fault, and ends every exit with the driver's safe command.
+// everything before starting, runs the fixed-rate loop until the duration, SIGINT/SIGTERM, an
+// operator e-stop or a fault, and ends every exit with the driver's safe command. The exit status
+// says how the run ended (kExit* in daemon.hpp; the table is in the --help footer below).
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -9,19 +10,37 @@
 #include "daemon.hpp"
 #include "pedalwave/config/daemon.hpp"
 
+namespace {
+constexpr const char* kExitTable =
+    "Exit status (how the run ended; the systemd unit never restarts after 2, 4, 5):\n"
+    "  0  normal end: the duration reached, or an operator stop (SIGTERM/SIGINT)\n"
+    "  1  internal error (an exception outside the loop); under systemd: restarted\n"
+    "  2  bad input: the configuration or the command line was refused\n"
+    "  4  a fault ended the run (safe stop: torque off)\n"
+    "  5  an operator emergency stop ended the run\n"
+    "  (3 is reserved for the simulation tools: a run that went numerically wrong)";
+}  // namespace
+
 int main(int argc, char** argv) {
-  CLI::App app{"pedalwave runtime daemon: read → observe → control → write at a fixed rate"};
+  namespace app = pedalwave::app;
+  CLI::App cli{"pedalwave runtime daemon: read → observe → control → write at a fixed rate"};
+  cli.footer(kExitTable);
   std::string config_path, plots_dir, report_json;
   double duration = -1.0;
   bool check_only = false, no_telemetry = false;
-  app.add_option("-c,--config", config_path, "daemon configuration (YAML)")->required();
-  app.add_option("-d,--duration", duration, "override the run time [s] (0 = until a signal)");
-  app.add_option("--plots", plots_dir, "write plots of the run into this folder (simulated plant)");
-  app.add_option("--report-json", report_json,
+  cli.add_option("-c,--config", config_path, "daemon configuration (YAML)")->required();
+  cli.add_option("-d,--duration", duration, "override the run time [s] (0 = until a signal)");
+  cli.add_option("--plots", plots_dir, "write plots of the run into this folder (simulated plant)");
+  cli.add_option("--report-json", report_json,
                  "write a JSON report of the run (events, exit, loop timing, driver counters) here");
-  app.add_flag("--check", check_only, "validate the configuration and exit");
-  app.add_flag("--no-telemetry", no_telemetry, "do not start DDS telemetry");
-  CLI11_PARSE(app, argc, argv);
+  cli.add_flag("--check", check_only, "validate the configuration and exit");
+  cli.add_flag("--no-telemetry", no_telemetry, "do not start DDS telemetry");
+  try {
+    cli.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = cli.exit(e);
+    return rc == 0 ? app::kExitNormal : app::kExitBadInput;
+  }
 
   pedalwave::config::DaemonConfig cfg;
   try {
@@ -33,24 +52,28 @@ int main(int argc, char** argv) {
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "configuration error: %s\n", e.what());
-    return 2;
+    return app::kExitBadInput;
   }
   if (check_only) {
-    std::printf("%s: configuration valid (driver %s, %g Hz, %d joints)\n", config_path.c_str(),
+    std::printf("%s: configuration valid (driver %s, %g Hz, %d joints, %s)\n", config_path.c_str(),
                 pedalwave::config::to_string(cfg.driver.kind), cfg.runtime.rt.rate_hz,
-                cfg.robot.N - 1);
-    return 0;
+                cfg.robot.N - 1,
+                cfg.runtime.auto_start ? "starts walking on its own"
+                                       : "waits in READY for an operator start command");
+    return app::kExitNormal;
   }
   try {
-    pedalwave::app::DaemonOptions opt;
+    app::DaemonOptions opt;
     opt.plots_dir = plots_dir;
     opt.telemetry = !no_telemetry;
     opt.report_json = report_json;
-    const auto r = pedalwave::app::run_daemon(cfg, opt);
-    using pedalwave::runtime::ExitReason;
-    return (r.run.reason == ExitReason::kFault) ? 3 : 0;
+    const auto r = app::run_daemon(cfg, opt);
+    return app::exit_code(r.run);
+  } catch (const app::BadInput& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return app::kExitBadInput;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
-    return 1;
+    return app::kExitInternal;
   }
 }

@@ -2,6 +2,8 @@
 // so runs are deterministic; configuration errors are refused before anything starts.
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -166,7 +168,26 @@ TEST(Daemon, AnUnwritableReportPathIsRefusedBeforeTheRun) {
   }
 }
 
-// ---- exit status (DEPLOY.md "Service policy") ------------------------------------------------------
+// ---- exit status and the walking marker (DEPLOY.md "Service policy") ----------------------------
+
+namespace {
+bool walked(const app::DaemonResult& r) {
+  for (const runtime::RunEvent& e : r.events)
+    if (e.sample.to == runtime::Mode::kRunning) return true;
+  return false;
+}
+std::filesystem::path fresh_state_dir(const std::string& name) {
+  namespace fs = std::filesystem;
+  const fs::path d = fs::temp_directory_path() / ("pedalwave_state_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  return d;
+}
+// What a run that crashed while walking leaves behind.
+void leave_crash_marker(const std::filesystem::path& dir) {
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "running") << "pid 4242, config robot.yaml, walking since 2026-01-01T00:00:00Z\n";
+}
+}  // namespace
 
 TEST(DaemonExit, TheExitStatusSaysHowTheRunEnded) {
   using runtime::ExitReason;
@@ -179,4 +200,117 @@ TEST(DaemonExit, TheExitStatusSaysHowTheRunEnded) {
     EXPECT_EQ(app::exit_code(r), code) << runtime::to_string(reason);
   }
   EXPECT_EQ(app::kExitBadInput, 2);
+}
+
+// (a) A marker from a run that crashed while walking: an auto-starting configuration does not
+// walk; the daemon says why, stays READY (torque off) to its end, and the orderly end clears it.
+TEST(DaemonStateMarker, AfterACrashTheRobotStaysReadyAndSaysWhy) {
+  const auto dir = fresh_state_dir("crash");
+  leave_crash_marker(dir);
+  auto cfg = lockstep(3.0);
+  ASSERT_TRUE(cfg.runtime.auto_start) << "the test needs a configuration that starts on its own";
+  const auto r = app::run_daemon(
+      cfg, {.plots_dir = "", .telemetry = false, .print = false, .state_dir = dir.string()});
+  EXPECT_TRUE(r.previous_run_crashed);
+  EXPECT_NE(r.start_note.find("previous run did not end in order"), std::string::npos) << r.start_note;
+  EXPECT_NE(r.start_note.find("pid 4242"), std::string::npos) << r.start_note;
+  EXPECT_NE(r.start_note.find("auto_start is OFF"), std::string::npos) << r.start_note;
+  EXPECT_NE(r.start_note.find("stays READY"), std::string::npos) << r.start_note;
+  EXPECT_FALSE(walked(r)) << r.summary;
+  EXPECT_FALSE(r.marked_running);
+  EXPECT_EQ(r.run.reason, runtime::ExitReason::kCycleLimit);
+  EXPECT_EQ(r.run.cycles, 3000u);
+  EXPECT_LT(std::abs(r.forward_speed), 1e-3) << "torque off: the robot must not move";
+  EXPECT_FALSE(std::filesystem::exists(dir / "running")) << "an orderly end clears the marker";
+  std::filesystem::remove_all(dir);
+}
+
+// After a crash, an operator's start command (DDS in the field; Runtime::post here) walks again.
+TEST(DaemonStateMarker, AfterACrashAnOperatorStartWalks) {
+  const auto dir = fresh_state_dir("start");
+  leave_crash_marker(dir);
+  auto start_when_ready = [](runtime::Runtime& rt) {
+    while (rt.mode() != runtime::Mode::kReady && rt.mode() != runtime::Mode::kSafeStop)
+      std::this_thread::yield();
+    runtime::OperatorCommand c;
+    c.kind = runtime::OperatorCommandKind::kStartWalking;
+    c.id = 1;
+    rt.post(c);
+  };
+  const auto r = app::run_daemon(lockstep(2.0), {.plots_dir = "",
+                                                 .telemetry = false,
+                                                 .print = false,
+                                                 .operator_console = start_when_ready,
+                                                 .state_dir = dir.string()});
+  EXPECT_TRUE(r.previous_run_crashed);
+  EXPECT_TRUE(walked(r)) << r.summary;
+  EXPECT_TRUE(r.marked_running);
+  EXPECT_EQ(r.run.reason, runtime::ExitReason::kCycleLimit);
+  EXPECT_FALSE(std::filesystem::exists(dir / "running"));
+  std::filesystem::remove_all(dir);
+}
+
+// (b) A run that walks writes the marker (seen from another thread while it walks) and its
+// normal end removes it: exit 0.
+TEST(DaemonStateMarker, WalkingWritesTheMarkerAndANormalEndRemovesIt) {
+  const auto dir = fresh_state_dir("normal");
+  bool seen_while_walking = false;
+  auto watch_then_stop = [&](runtime::Runtime& rt) {
+    while (rt.mode() != runtime::Mode::kRunning && rt.mode() != runtime::Mode::kSafeStop)
+      std::this_thread::yield();
+    for (int i = 0; i < 5000 && !seen_while_walking; ++i) {
+      seen_while_walking = std::filesystem::exists(dir / "running");
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    rt.request_stop();
+  };
+  auto cfg = lockstep(0.0);  // until stopped
+  cfg.runtime.max_cycles = 0;
+  const auto r = app::run_daemon(cfg, {.plots_dir = "",
+                                       .telemetry = false,
+                                       .print = false,
+                                       .operator_console = watch_then_stop,
+                                       .state_dir = dir.string()});
+  EXPECT_FALSE(r.previous_run_crashed);
+  EXPECT_TRUE(r.start_note.empty());
+  EXPECT_TRUE(seen_while_walking) << "the marker exists while the robot walks";
+  EXPECT_TRUE(r.marked_running);
+  EXPECT_EQ(r.run.reason, runtime::ExitReason::kStopRequested);
+  EXPECT_EQ(app::exit_code(r.run), 0);
+  EXPECT_FALSE(std::filesystem::exists(dir / "running"));
+  std::filesystem::remove_all(dir);
+}
+
+// (c) A fault ends the run in a safe stop: the marker is removed (a fault is an orderly end: the
+// service stays stopped, exit 4, and the next start begins afresh).
+TEST(DaemonStateMarker, AFaultEndRemovesTheMarkerAndExits4) {
+  const auto dir = fresh_state_dir("fault");
+  auto cfg = lockstep(3.0);
+  model::FaultSpec f;
+  f.type = model::FaultType::kEncoderStuck;
+  f.joint = 0;
+  f.t_start = 0.5;
+  cfg.driver.scene.faults.push_back(f);
+  const auto r = app::run_daemon(
+      cfg, {.plots_dir = "", .telemetry = false, .print = false, .state_dir = dir.string()});
+  EXPECT_TRUE(walked(r));
+  EXPECT_TRUE(r.marked_running);
+  EXPECT_EQ(r.run.reason, runtime::ExitReason::kFault) << r.exit_line;
+  EXPECT_EQ(r.run.fault, runtime::FaultClass::kEncoderStuck) << r.exit_line;
+  EXPECT_EQ(app::exit_code(r.run), app::kExitFault);
+  EXPECT_EQ(app::exit_code(r.run), 4);
+  EXPECT_FALSE(std::filesystem::exists(dir / "running"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(DaemonStateMarker, AStateFolderThatCannotBeWrittenIsBadInput) {
+  try {
+    app::run_daemon(lockstep(1.0), {.plots_dir = "",
+                                    .telemetry = false,
+                                    .print = false,
+                                    .state_dir = "/proc/pedalwave"});
+    FAIL() << "expected a refusal";
+  } catch (const app::BadInput& e) {
+    EXPECT_NE(std::string(e.what()).find("--state-dir /proc/pedalwave"), std::string::npos) << e.what();
+  }
 }

@@ -1,6 +1,7 @@
 #include "daemon.hpp"
 
 #include <cmath>
+#include <exception>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "gait_stage.hpp"
+#include "run_marker.hpp"
 #include "run_report.hpp"
 #include "pedalwave/drivers/fault_injecting_driver.hpp"
 #include "pedalwave/drivers/serial_driver.hpp"
@@ -216,14 +218,38 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
     report.open(opt.report_json);
     if (!report) throw BadInput("--report-json " + opt.report_json + ": cannot open the file for writing");
   }
+  // The walking marker (run_marker.hpp): an earlier run's marker means it did not end in order;
+  // this run then does not auto-start — it waits in READY for an operator's start command.
+  std::unique_ptr<RunMarker> marker;
+  runtime::RuntimeConfig rc = cfg.runtime;
+  if (!opt.state_dir.empty()) {
+    try {
+      marker = std::make_unique<RunMarker>(opt.state_dir, cfg.source.empty() ? cfg.name : cfg.source);
+    } catch (const std::runtime_error& e) {
+      throw BadInput(e.what());
+    }
+    if (marker->found()) {
+      res.previous_run_crashed = true;
+      res.start_note =
+          "*** the previous run did not end in order (" + marker->path().string() + ": " +
+          marker->previous() + "): a crash, a kill or a power loss while walking. " +
+          (rc.auto_start ? "auto_start is OFF for this run: " : "") +
+          "the robot stays READY (torque off) until an operator starts it (DDS command start, "
+          "e.g. pedalwave_monitor --command start); systemctl stop / restart ends this run in "
+          "order and clears the marker";
+      rc.auto_start = false;
+      out << res.start_note << "\n";
+    }
+  }
   const OwnedDriver owned = opt.driver ? OwnedDriver{} : make_driver(cfg, cfg.duration);
   drivers::Driver* driver = opt.driver ? opt.driver : owned.top();
   auto* sim = dynamic_cast<drivers::SimDriver*>(opt.driver ? opt.driver : owned.base.get());
   GaitStage stage(cfg.controller);
   const std::unique_ptr<runtime::Observer> observer = make_observer(cfg);
-  auto rt = std::make_unique<runtime::Runtime>(cfg.runtime, *driver, stage, observer.get());
+  auto rt = std::make_unique<runtime::Runtime>(rc, *driver, stage, observer.get());
 
   std::vector<runtime::TelemetrySink*> sinks;
+  if (marker) sinks.push_back(marker.get());
   SampleRecorder recorder(10);
   if (!opt.plots_dir.empty()) sinks.push_back(&recorder);
 #if PEDALWAVE_HAS_DDS
@@ -264,7 +290,15 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   runtime::TelemetryConsumer consumer(*rt, sinks, cc);
   consumer.start();
   runtime::install_stop_signal_handlers();
-  std::thread loop([&] { res.run = rt->run(); });
+  std::exception_ptr loop_error;  // run() throws only before the loop (require_rt refused)
+  std::thread loop([&] {
+    try {
+      res.run = rt->run();
+    } catch (...) {
+      loop_error = std::current_exception();
+      rt->request_stop();
+    }
+  });
   std::thread console;
   if (opt.operator_console) console = std::thread([&] { opt.operator_console(*rt); });
   loop.join();
@@ -273,6 +307,18 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
 #if PEDALWAVE_HAS_DDS
   dds.reset();
 #endif
+  if (loop_error) std::rethrow_exception(loop_error);  // not an orderly end: the marker stays
+
+  // Every RunResult with a reason is an orderly end (the safe command was sent): clear the marker.
+  if (marker) {
+    res.marked_running = marker->marked();
+    if (!marker->write_error().empty())
+      out << "*** state: the walking marker could not be written: " << marker->write_error() << "\n";
+    if (res.run.reason != runtime::ExitReason::kNone) {
+      const std::string err = marker->clear();
+      if (!err.empty()) out << "*** state: " << err << " (the next run will start in READY)\n";
+    }
+  }
 
   // Report: the summary (events, loop timing; the consumer logged it unless there is a log file),
   // the exit line, the JSON report, and (sim) what the robot did.

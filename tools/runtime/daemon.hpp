@@ -32,6 +32,10 @@ struct DaemonOptions {
   // commands with Runtime::post). It must return once rt.mode() is SAFE_STOP; run_daemon joins it
   // after the loop. Runtime::post takes ONE producer: not together with DDS commands.
   std::function<void(runtime::Runtime&)> operator_console{};
+  // Keep the walking marker (run_marker.hpp) in this folder (systemd's StateDirectory,
+  // /var/lib/pedalwave); empty = off (development runs). A marker left by an earlier run means it
+  // did not end in order: this run does not auto-start and stays READY until an operator starts it.
+  std::string state_dir{};
 };
 
 struct DaemonResult {
@@ -43,11 +47,15 @@ struct DaemonResult {
   runtime::EventLog event_log;        // every event of the run (bounded), for tests and tools
   std::vector<runtime::RunEvent> events;  // event_log.events()
   bool telemetry_active = false;
+  bool previous_run_crashed = false;  // a marker of an earlier run was found (state_dir set)
+  std::string start_note;             // what the daemon said about it at start (empty = nothing)
+  bool marked_running = false;        // this run wrote the marker (it was seen RUNNING)
 };
 
 // Exit status of pedalwave_runtime (README, "Exit status of pedalwave_runtime"; DEPLOY.md,
 // "Service policy": the unit's RestartPreventExitStatus=2 4 5 never restarts after bad input, a
-// fault or an e-stop).
+// fault or an e-stop; a crash — exit 1 or a signal — restarts, into READY because the walking
+// marker is left behind).
 inline constexpr int kExitNormal = 0;         // duration reached, SIGINT/SIGTERM or a stop request
 inline constexpr int kExitInternal = 1;       // internal error (an exception outside the loop)
 inline constexpr int kExitBadInput = 2;       // configuration or command line refused
@@ -56,12 +64,12 @@ inline constexpr int kExitFault = 4;          // a fault ended the run (safe sto
 inline constexpr int kExitEmergencyStop = 5;  // an operator emergency stop ended the run
 int exit_code(const runtime::RunResult& r) noexcept;
 
-// A refused option found before anything starts (--report-json): kExitBadInput.
+// A refused option found before anything starts (--report-json, --state-dir): kExitBadInput.
 struct BadInput : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Throws BadInput (before the run) for an unusable report path.
+// Throws BadInput (before the run) for an unusable report path or state folder.
 DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& opt);
 
 // The onboard observer as the daemon wires it: the configured robot (one stiffness per joint),

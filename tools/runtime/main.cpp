@@ -14,18 +14,20 @@ namespace {
 constexpr const char* kExitTable =
     "Exit status (how the run ended; the systemd unit never restarts after 2, 4, 5):\n"
     "  0  normal end: the duration reached, or an operator stop (SIGTERM/SIGINT)\n"
-    "  1  internal error (an exception outside the loop); under systemd: restarted\n"
+    "  1  internal error (an exception outside the loop); under systemd: restarted, into READY\n"
     "  2  bad input: the configuration or the command line was refused\n"
     "  4  a fault ended the run (safe stop: torque off)\n"
     "  5  an operator emergency stop ended the run\n"
-    "  (3 is reserved for the simulation tools: a run that went numerically wrong)";
+    "  (3 is reserved for the simulation tools: a run that went numerically wrong)\n"
+    "With --state-dir, a run that walked and did not end in order (crash, kill, power loss)\n"
+    "leaves <dir>/running behind; the next run then stays READY until an operator start command.";
 }  // namespace
 
 int main(int argc, char** argv) {
   namespace app = pedalwave::app;
   CLI::App cli{"pedalwave runtime daemon: read → observe → control → write at a fixed rate"};
   cli.footer(kExitTable);
-  std::string config_path, plots_dir, report_json;
+  std::string config_path, plots_dir, report_json, state_dir;
   double duration = -1.0;
   bool check_only = false, no_telemetry = false;
   cli.add_option("-c,--config", config_path, "daemon configuration (YAML)")->required();
@@ -33,6 +35,9 @@ int main(int argc, char** argv) {
   cli.add_option("--plots", plots_dir, "write plots of the run into this folder (simulated plant)");
   cli.add_option("--report-json", report_json,
                  "write a JSON report of the run (events, exit, loop timing, driver counters) here");
+  cli.add_option("--state-dir", state_dir,
+                 "keep the walking marker here (the unit: /var/lib/pedalwave); a marker left by "
+                 "a run that did not end in order keeps this run in READY (no auto-start)");
   cli.add_flag("--check", check_only, "validate the configuration and exit");
   cli.add_flag("--no-telemetry", no_telemetry, "do not start DDS telemetry");
   try {
@@ -67,6 +72,7 @@ int main(int argc, char** argv) {
     opt.plots_dir = plots_dir;
     opt.telemetry = !no_telemetry;
     opt.report_json = report_json;
+    opt.state_dir = state_dir;
     const auto r = app::run_daemon(cfg, opt);
     return app::exit_code(r.run);
   } catch (const app::BadInput& e) {

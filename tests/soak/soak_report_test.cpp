@@ -165,6 +165,8 @@ TEST(SoakConfig, PointsTheSerialDriverAtTheLinkAndRefusesOtherDrivers) {
   EXPECT_NE(y.find("rate_hz: 250"), std::string::npos) << y;
   EXPECT_NE(y.find("enabled: false"), std::string::npos) << y;
   EXPECT_NE(y.find("type: serial"), std::string::npos) << y;
+  // The shipped hardware configuration waits for an operator's start; the soak starts it.
+  EXPECT_NE(y.find("auto_start: true"), std::string::npos) << y;
   const std::string on = sk::soak_runtime_config(PEDALWAVE_SERIAL_YAML, "/tmp/soak/tty", 0, true);
   EXPECT_NE(on.find("rate_hz: 500"), std::string::npos) << "template's rate kept\n" << on;
   EXPECT_NE(on.find("interface: lo"), std::string::npos) << on;

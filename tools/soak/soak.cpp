@@ -137,6 +137,14 @@ std::string soak_runtime_config(const std::filesystem::path& template_path, cons
   }
   tel["enabled"] = telemetry;
   if (telemetry && !tel["interface"]) tel["interface"] = "lo";
+  // The shipped hardware configurations wait in READY for an operator's start command
+  // (DEPLOY.md "Service policy"); the soak stands for that operator and starts at once.
+  YAML::Node rt = root["realtime"];
+  if (!rt || !rt.IsMap()) {
+    root["realtime"] = YAML::Node(YAML::NodeType::Map);
+    rt = root["realtime"];
+  }
+  rt["auto_start"] = true;
   YAML::Emitter out;
   out << root;
   return std::string("# written by pedalwave_soak from ") + template_path.string() + "\n" + out.c_str() + "\n";

@@ -46,7 +46,8 @@ struct MemorySample {
 
 // The runtime configuration of a soak run, from a template (config/runtime/serial.yaml or the
 // user's): driver.device = `device`, rate_hz overridden when rate_hz > 0, telemetry.enabled (and
-// telemetry.interface = lo when on and the template names none). Returns the YAML text.
+// telemetry.interface = lo when on and the template names none), realtime.auto_start = true (the
+// soak is the operator who starts the walk). Returns the YAML text.
 // Throws UsageError naming the template and the key when the template cannot be read, is not a
 // mapping or its driver is not the serial bus (driver.type: serial) that the virtual robot's pty
 // serves.

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # The README's test command. Installs dependencies (apt-get), then:
-#   1. Release build with warnings as errors; the whole ctest suite (host).
+#   1. Release build with warnings as errors; the whole ctest suite (host), with the package tests
+#      (label package: the unit's policy, an install into a staging root, and the Debian package
+#      built with cpack, installed with dpkg -i, checked and removed; that one needs root).
 #   2. ASan+UBSan build; the suite without the slow label.
 #   3. libFuzzer targets of the protocol decoders (clang), a few seconds each.
 #   4. The real-SocketCAN tests (ctest -L vcan) inside a qemu VM with Debian's kernel and vcan0.
@@ -14,7 +16,8 @@ start=$(date +%s)
 step() { echo; echo "== $* ($(( $(date +%s) - start )) s) =="; }
 
 step "[1/4] Release build, -Werror"
-cmake -S . -B build/release -G Ninja -DCMAKE_BUILD_TYPE=Release -DPEDALWAVE_WERROR=ON >/dev/null
+cmake -S . -B build/release -G Ninja -DCMAKE_BUILD_TYPE=Release -DPEDALWAVE_WERROR=ON \
+      -DCMAKE_INSTALL_PREFIX=/usr >/dev/null  # the Debian package's prefix (DEPLOY.md)
 cmake --build build/release -j"$jobs"
 step "[1/4] ctest (host; vcan tests run in step 4)"
 (cd build/release && ctest --output-on-failure -j"$jobs" --timeout 900 -LE vcan)

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "pedalwave/config/daemon.hpp"
+#include "pedalwave/config/shipped.hpp"
 
 using namespace pedalwave;
 
@@ -28,4 +29,13 @@ TEST(RuntimeFiles, HardwareConfigurationsDoNotStartWalkingOnTheirOwn) {
   }
   EXPECT_GE(hardware, 2) << "socketcan.yaml and serial.yaml";
   EXPECT_GE(sim, 1) << "demo.yaml";
+}
+
+// Installed programs find the shipped files in the installed examples once the source tree is gone.
+TEST(RuntimeFiles, ShippedFilesComeFromTheSourceTreeElseTheInstalledExamples) {
+  EXPECT_EQ(config::pick_shipped_dir(PEDALWAVE_CONFIG_DIR, "/usr/share/pedalwave/examples"),
+            PEDALWAVE_CONFIG_DIR);
+  EXPECT_EQ(config::pick_shipped_dir("/nonexistent/pedalwave/config", "/usr/share/pedalwave/examples"),
+            "/usr/share/pedalwave/examples");
+  EXPECT_EQ(config::shipped_dir(), PEDALWAVE_CONFIG_DIR) << "a build tree uses its sources";
 }

@@ -24,7 +24,7 @@ for f in "$CONF_DIR/robot.yaml" "$UNIT_DIR/pedalwave-runtime.service" \
          "$DOC_DIR/README.md" "$DOC_DIR/DEPLOY.md" "$DOC_DIR/PROTOCOL.md" "$DOC_DIR/TELEMETRY.md" \
          "$DATA_DIR/idl/Telemetry.idl" "$DATA_DIR/examples/runtime/demo.yaml" \
          "$DATA_DIR/examples/runtime/socketcan.yaml" "$DATA_DIR/examples/runtime/serial.yaml" \
-         "$DATA_DIR/examples/scenes/flat_high_friction.yaml"; do
+         "$DATA_DIR/examples/scenes/flat_high_friction.yaml" "$DATA_DIR/scripts/plot_soak.py"; do
   [ -f "$stage$f" ] || fail "$f missing"
 done
 grep -q "^ExecStart=$BIN_DIR/pedalwave_runtime --config $CONF_DIR/robot.yaml " "$stage$UNIT_DIR/pedalwave-runtime.service" \

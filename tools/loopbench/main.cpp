@@ -41,6 +41,7 @@
 #include "daemon.hpp"
 #include "gait_stage.hpp"
 #include "pedalwave/config/daemon.hpp"
+#include "pedalwave/config/shipped.hpp"
 #include "pedalwave/drivers/sim_driver.hpp"
 #include "pedalwave/runtime/consumer.hpp"
 #include "pedalwave/runtime/runtime.hpp"
@@ -441,7 +442,7 @@ int main(int argc, char** argv) {
 
   try {
     const int demo_decimation =
-        config::load_daemon_config(PEDALWAVE_CONFIG_DIR "/runtime/demo.yaml").telemetry.decimation_state;
+        config::load_daemon_config(config::shipped_dir() + "/runtime/demo.yaml").telemetry.decimation_state;
     const auto dir = std::filesystem::temp_directory_path() / ("pedalwave_loopbench_" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir);
 

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "paper.hpp"
+#include "pedalwave/config/shipped.hpp"
 
 namespace {
 
@@ -30,7 +31,7 @@ constexpr int kExitBadInput = 2;
 
 struct Common {
   std::string out = "out/paper";
-  std::string scenes = PEDALWAVE_SCENES_DIR;
+  std::string scenes = pedalwave::config::shipped_dir() + "/scenes";
   int jobs = paper::default_jobs();
   std::string integrator;  // empty: each scene's own
   double h = 0.0;

@@ -36,6 +36,7 @@
 #include <thread>
 #include <vector>
 
+#include "pedalwave/config/shipped.hpp"
 #include "pedalwave/toolkit/cpu_load.hpp"
 #include "pedalwave/toolkit/csv.hpp"
 #include "pedalwave/toolkit/json.hpp"
@@ -218,8 +219,8 @@ bool have_matplotlib() {
 }
 
 struct Options {
-  std::string scene = PEDALWAVE_CONFIG_DIR "/scenes/flat_high_friction.yaml";
-  std::string config = PEDALWAVE_CONFIG_DIR "/runtime/serial.yaml";
+  std::string scene = pedalwave::config::shipped_dir() + "/scenes/flat_high_friction.yaml";
+  std::string config = pedalwave::config::shipped_dir() + "/runtime/serial.yaml";
   double duration = 60.0;
   double rate = 0.0;
   int load = static_cast<int>(std::thread::hardware_concurrency());
@@ -442,7 +443,9 @@ int run(const Options& opt) {
               vr_log.c_str());
   std::fflush(stdout);  // before the script's output
   if (!opt.no_plot) {
-    const fs::path script = PEDALWAVE_SOAK_PLOT_SCRIPT;
+    // The source tree's script, else the installed one (<prefix>/share/pedalwave/scripts).
+    fs::path script = PEDALWAVE_SOAK_PLOT_SCRIPT;
+    if (!fs::is_regular_file(script)) script = PEDALWAVE_INSTALLED_SOAK_PLOT_SCRIPT;
     if (!fs::is_regular_file(script)) {
       std::printf("plot skipped: %s not found\n", script.c_str());
     } else if (!have_matplotlib()) {

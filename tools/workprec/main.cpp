@@ -26,6 +26,7 @@
 #include <thread>
 
 #include "pedalwave/config/scene.hpp"
+#include "pedalwave/config/shipped.hpp"
 #include "pedalwave/model/stability.hpp"
 #include "pedalwave/toolkit/csv.hpp"
 #include "pedalwave/toolkit/plots.hpp"
@@ -446,7 +447,7 @@ int main(int argc, char** argv) {
   CLI::App app{"pedalwave_workprec: what accuracy costs in time — integrators against a tight "
                "reference on the shipped scenes (or, with --fidelity, model variants)"};
   Options opt;
-  const std::string dir = PEDALWAVE_SCENES_DIR;
+  const std::string dir = pedalwave::config::shipped_dir() + "/scenes";
   app.add_option("scenes", opt.scenes, "scene files (default: the shipped scenes; --fidelity: flat_high_friction and stair)");
   app.add_option("--duration", opt.duration, "simulated time per run [s]")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--out", opt.out, "output folder")->capture_default_str();

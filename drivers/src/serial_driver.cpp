@@ -229,6 +229,8 @@ void SerialDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns) no
       status_[ju] |= kStatusLate;
       late_timing_[ju] = fb.timing;  // still says when the module applied its command then
       have_late_[ju] = true;
+      late_[ju].offer_values(fb.echo, fb.beta, fb.beta_dot, fb.deflection, fb.status);
+      late_[ju].offer_timing(fb.echo, fb.timing);
       break;
     case FrameAge::kOutOfOrder:
       ++counters_.out_of_order;
@@ -256,6 +258,7 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
     drivers::begin_cycle(rc_[static_cast<std::size_t>(j)]);
     status_[static_cast<std::size_t>(j)] = 0;
     have_late_[static_cast<std::size_t>(j)] = false;
+    late_[static_cast<std::size_t>(j)].clear();
   }
   fresh_count_ = 0;
   stamp_ns_ = 0;
@@ -279,6 +282,7 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
   // Close the gap between the two packets (the Sync Read was built at offset 16).
   std::memmove(sync_tx_.data() + n, sync_tx_.data() + 16, sync_read_len_);
   sync_lower_ns_ = detail::monotonic_ns() + sync_wire_ns_;
+  sync_lower_of_[counter_] = sync_lower_ns_;
   const bool sent = write_all(sync_tx_.data(), n + sync_read_len_, deadline_ns);
   std::memmove(sync_tx_.data() + 16, sync_tx_.data() + n, sync_read_len_);
   if (sent) {
@@ -306,6 +310,7 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
   out.seq = cycle_;
   out.stamp_ns = fresh_count_ > 0 ? stamp_ns_ : detail::monotonic_ns();
   out.timing = FeedbackTiming::kModule;
+  int late_used = 0;  // joints whose sample is a late answer (PROTOCOL.md §4)
   for (int j = 0; j < joints_; ++j) {
     const auto ju = static_cast<std::size_t>(j);
     std::uint16_t st = status_[ju];
@@ -316,15 +321,30 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
       out.late_applied_ns[ju] = clocks_[ju].to_host(lt.sample_us - lt.applied_age_us);
       out.late_applied_seq[ju] = seq_of_tag_[lt.applied_tag];
     }
-    if (!rc_[ju].fresh) {
-      st |= kStatusMissing;
-      ++counters_.missing;
-    } else {
+    ModuleClock& clk = clocks_[ju];
+    const LateSample& late = late_[ju];
+    if (rc_[ju].fresh) {
       const wire::ModuleTiming& t = last_[ju].timing;
-      ModuleClock& clk = clocks_[ju];
       out.sample_ns[ju] = clk.update(t.sample_us, sync_lower_ns_);
       out.applied_ns[ju] = clk.to_host(t.sample_us - t.applied_age_us);
       out.applied_seq[ju] = t.no_command ? kNoCommandSeq : seq_of_tag_[t.applied_tag];
+      handed_[ju].take(t.sample_us);
+    } else if (late.complete() && handed_[ju].newer(late.timing.sample_us)) {
+      // No fresh answer, but a late one: an older sample at its own (module) time. It updates the
+      // clock with the lower bound of the SYNC it answered.
+      const wire::ModuleTiming& t = late.timing;
+      last_[ju] = dxl::FeedbackBlock{late.beta, late.beta_dot, late.deflection, late.status,
+                                     late.values_echo, t};
+      out.sample_ns[ju] = clk.update(t.sample_us, sync_lower_of_[late.values_echo]);
+      out.applied_ns[ju] = clk.to_host(t.sample_us - t.applied_age_us);
+      out.applied_seq[ju] = t.no_command ? kNoCommandSeq : seq_of_tag_[t.applied_tag];
+      out.late_applied_ns[ju] = 0;
+      handed_[ju].take(t.sample_us);
+      ++counters_.late_used;
+      ++late_used;
+    } else {
+      st |= kStatusMissing;
+      ++counters_.missing;
     }
     const dxl::FeedbackBlock& fb = last_[ju];
     out.beta[ju] = fb.beta;
@@ -333,8 +353,8 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
     out.status[ju] = static_cast<std::uint16_t>(st | fb.status);
   }
   if (!sent) return IoStatus::kBusError;
-  if (fresh_count_ == 0) return IoStatus::kTimeout;
-  if (fresh_count_ < joints_) return IoStatus::kPartial;
+  if (fresh_count_ + late_used == 0) return IoStatus::kTimeout;
+  if (fresh_count_ + late_used < joints_) return IoStatus::kPartial;
   return IoStatus::kOk;
 }
 

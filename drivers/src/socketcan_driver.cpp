@@ -329,9 +329,11 @@ void SocketCanDriver::take_feedback(int j, const can::ModuleFeedback& fb,
     case FrameAge::kLate:
       ++counters_.late;
       status_[ju] |= kStatusLate;
+      late_[ju].offer_values(fb.counter, fb.beta, fb.beta_dot, fb.deflection, fb.status);
       if (t) {
         late_timing_[ju] = *t;
         have_late_[ju] = true;
+        late_[ju].offer_timing(fb.counter, *t);
       }
       break;
     case FrameAge::kOutOfOrder:
@@ -362,6 +364,7 @@ void SocketCanDriver::handle_timing(const can_frame& f, std::int64_t stamp_ns) n
     // module applied its command then (the observer bridges the lost sample with it).
     late_timing_[ju] = t;
     have_late_[ju] = true;
+    late_[ju].offer_timing(echo, t);
     return;
   }
   if (have_timing_[ju]) return;  // a repeated record
@@ -377,6 +380,7 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
     status_[static_cast<std::size_t>(j)] = 0;
     have_timing_[static_cast<std::size_t>(j)] = false;
     have_late_[static_cast<std::size_t>(j)] = false;
+    late_[static_cast<std::size_t>(j)].clear();
   }
   fresh_count_ = 0;
   stamp_ns_ = 0;
@@ -391,6 +395,7 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
   can::encode_sync(sync_counter_, sync);
   bool dropped = false, down = false;
   sync_lower_ns_ = detail::monotonic_ns() + sync_wire_ns_;
+  sync_lower_of_[sync_counter_ & can::kClassicCounterMask] = sync_lower_ns_;  // echoes: 4 bits
   note_tx(send_classic(sync), dropped, down);
 
   // Until every joint has its fresh feedback (and, on a classic bus, its timing frame).
@@ -414,6 +419,7 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
   out.seq = cycle_;
   out.stamp_ns = fresh_count_ > 0 ? stamp_ns_ : detail::monotonic_ns();
   out.timing = FeedbackTiming::kModule;
+  int late_used = 0;  // joints whose sample is a late answer (PROTOCOL.md §4)
   const bool bus_bad = down || bus_off_ || error_passive_ || bus_error_cycle_;
   for (int j = 0; j < joints_; ++j) {
     const auto ju = static_cast<std::size_t>(j);
@@ -426,18 +432,33 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
       out.late_applied_ns[ju] = clocks_[ju].to_host(lt.sample_us - lt.applied_age_us);
       out.late_applied_seq[ju] = seq_of_tag_[lt.applied_tag & tag_mask];
     }
-    if (!rc_[ju].fresh) {
-      st |= kStatusMissing;
-      ++counters_.missing;
-    } else if (!have_timing_[ju]) {
+    ModuleClock& clk = clocks_[ju];
+    const LateSample& late = late_[ju];
+    if (rc_[ju].fresh && !have_timing_[ju]) {
       st |= kStatusNoTiming;
-    } else {
+    } else if (rc_[ju].fresh) {
       const wire::ModuleTiming& t = timing_[ju];
-      ModuleClock& clk = clocks_[ju];
       out.sample_ns[ju] = clk.update(t.sample_us, sync_lower_ns_);
       out.applied_ns[ju] = clk.to_host(t.sample_us - t.applied_age_us);
-      const unsigned mask = fd_mode_ ? 0xFFu : can::kClassicCounterMask;
-      out.applied_seq[ju] = t.no_command ? kNoCommandSeq : seq_of_tag_[t.applied_tag & mask];
+      out.applied_seq[ju] = t.no_command ? kNoCommandSeq : seq_of_tag_[t.applied_tag & tag_mask];
+      handed_[ju].take(t.sample_us);
+    } else if (late.complete() && handed_[ju].newer(late.timing.sample_us)) {
+      // No fresh answer, but a late one (values and record of the same SYNC): an older sample at
+      // its own module time. It updates the clock with the lower bound of the SYNC it answered.
+      const wire::ModuleTiming& t = late.timing;
+      last_[ju] = can::ModuleFeedback{late.beta, late.beta_dot, late.deflection, late.status,
+                                      late.values_echo};
+      out.sample_ns[ju] =
+          clk.update(t.sample_us, sync_lower_of_[late.timing_echo & can::kClassicCounterMask]);
+      out.applied_ns[ju] = clk.to_host(t.sample_us - t.applied_age_us);
+      out.applied_seq[ju] = t.no_command ? kNoCommandSeq : seq_of_tag_[t.applied_tag & tag_mask];
+      out.late_applied_ns[ju] = 0;
+      handed_[ju].take(t.sample_us);
+      ++counters_.late_used;
+      ++late_used;
+    } else {
+      st |= kStatusMissing;
+      ++counters_.missing;
     }
     if (bus_bad) st |= kStatusBusError;
     const can::ModuleFeedback& fb = last_[ju];
@@ -447,8 +468,8 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
     out.status[ju] = static_cast<std::uint16_t>(st | fb.status);
   }
   if (bus_bad) return IoStatus::kBusError;
-  if (fresh_count_ == 0) return IoStatus::kTimeout;
-  if (fresh_count_ < joints_) return IoStatus::kPartial;
+  if (fresh_count_ + late_used == 0) return IoStatus::kTimeout;
+  if (fresh_count_ + late_used < joints_) return IoStatus::kPartial;
   return IoStatus::kOk;
 }
 

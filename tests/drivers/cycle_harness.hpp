@@ -16,6 +16,7 @@ struct CycleLog {
   std::vector<drivers::IoStatus> io;
   std::vector<std::array<std::uint16_t, drivers::kMaxJoints>> status;
   std::vector<drivers::Feedback> fb;
+  std::vector<std::int64_t> wake;  // the cycle's start (the read's now) [ns, CLOCK_MONOTONIC]
 };
 
 inline std::int64_t now_ns() {
@@ -58,6 +59,7 @@ inline CycleLog run_cycles(drivers::Driver& drv, int cycles, std::int64_t period
   log.io.reserve(static_cast<std::size_t>(cycles));
   log.status.reserve(static_cast<std::size_t>(cycles));
   log.fb.reserve(static_cast<std::size_t>(cycles));
+  log.wake.reserve(static_cast<std::size_t>(cycles));
   drivers::Feedback fb{};
   drivers::Command cmd{};
   std::int64_t t0 = now_ns();
@@ -68,6 +70,7 @@ inline CycleLog run_cycles(drivers::Driver& drv, int cycles, std::int64_t period
     for (int j = 0; j < drv.joints(); ++j) st[j] = fb.status[j];
     log.status.push_back(st);
     log.fb.push_back(fb);
+    log.wake.push_back(t0);
     if (write_commands) {
       make_command(cmd, drv.joints(), t0);
       drv.write(cmd);
@@ -77,6 +80,31 @@ inline CycleLog run_cycles(drivers::Driver& drv, int cycles, std::int64_t period
     sleep_until(t0);
   }
   return log;
+}
+
+// Every late answer used as a sample (kStatusLate without kStatusMissing) carries the sample time
+// of the SYNC it answered: after the start of one of the last 8 cycles (less the clock estimate's
+// slack; a hiccup delays an answer by more than a cycle) and before the end of this cycle's read (an emulator thread that stalled samples late, and says so);
+// the sample times handed out for a joint increase. Returns how many joint-cycles were late
+// answers used.
+inline int check_late_samples(const CycleLog& log, int joints, std::int64_t read_end_ns) {
+  int used = 0;
+  for (int j = 0; j < joints; ++j) {
+    std::int64_t prev = 0;
+    for (std::size_t i = 0; i < log.fb.size(); ++i) {
+      const drivers::Feedback& fb = log.fb[i];
+      const std::uint16_t st = fb.status[j];
+      if (st & drivers::kStatusMissing) continue;
+      const std::int64_t s = fb.sample_ns[j];
+      EXPECT_GT(s, prev) << "cycle " << i << " joint " << j << ": sample times increase";
+      prev = s;
+      if ((st & drivers::kStatusLate) == 0 || i == 0) continue;
+      ++used;
+      EXPECT_LT(s, log.wake[i] + read_end_ns) << "cycle " << i << " joint " << j;
+      EXPECT_GT(s, log.wake[i < 8 ? 0 : i - 8] - 1'000'000) << "cycle " << i << " joint " << j;
+    }
+  }
+  return used;
 }
 
 }  // namespace pedalwave::test

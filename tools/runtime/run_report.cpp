@@ -204,6 +204,7 @@ void write_run_report(std::ostream& out, const RunReportInput& in) {
   j.key("frames_rx").uint(c.frames_rx);
   j.key("missing").uint(c.missing);
   j.key("late").uint(c.late);
+  j.key("late_used").uint(c.late_used);
   j.key("duplicate").uint(c.duplicate);
   j.key("out_of_order").uint(c.out_of_order);
   j.key("checksum").uint(c.checksum);

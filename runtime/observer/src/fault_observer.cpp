@@ -294,6 +294,12 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
   // ---- Kinematic consistency of the encoder: c = Δβ − T (β̇_0 + β̇_1)/2 ----
   const double c = (b1 - b0) - 0.5 * dt * (bd0 + bd1);
   c_[k] = c;
+  // The threshold is set for one period. Over a longer measured interval (a module that sampled
+  // late, a late answer used) the trapezoid's own error grows with the interval squared (a change
+  // of β̈ inside it: ≤ dt²/8 · Δβ̈), so the threshold does too; an offset jump (≥ 10× the
+  // threshold) still stands out over three periods.
+  const double stretch = iv.nominal ? 1.0 : std::max(1.0, dt / p_.period);
+  const double c_threshold = p_.consistency_threshold * stretch * stretch;
   if (iv.nominal) {
     // A step in the commanded rate (start, hold, resume) moves the motor within ~J/k_d, faster
     // than the trapezoid follows: no consistency verdicts for a few cycles.
@@ -314,7 +320,7 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
     const double dc0 = iv.pieces > 1 ? std::abs(law_offset(cmd, k) - law_offset(c_first, k)) : 0.0;
     const double stiff = std::max(cmd.kd[k], J_ / dt);
     const bool off_step = iv.pieces > 1 && cmd.torque_off != c_first.torque_off;
-    if (off_step || 0.5 * dt * dc0 / stiff > 0.25 * p_.consistency_threshold)
+    if (off_step || 0.5 * dt * dc0 / stiff > 0.25 * c_threshold)
       s.cmd_settle = p_.command_settle;
   }
   s.prev_ref_rate = cmd.beta_dot_ref[k];
@@ -323,7 +329,7 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
     --s.cmd_settle;
   } else if (!settled) {
   } else if (s.spike_wait > 0) {
-    if (std::abs(c) > p_.consistency_threshold) ++s.spikes;
+    if (std::abs(c) > c_threshold) ++s.spikes;
     if (s.spikes >= p_.noise_spikes) {
       latch(FaultClass::kEncoderNoise, j, t, s.spike_value, p_.consistency_threshold, 0.0);
       s.spike_wait = 0;
@@ -331,7 +337,7 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
       // One isolated spike, the encoder alive afterwards: an offset jump.
       latch(FaultClass::kEncoderJump, j, t, s.spike_value, p_.consistency_threshold, s.spike_value);
     }
-  } else if (std::abs(c) > p_.consistency_threshold && !sensor_latched) {
+  } else if (std::abs(c) > c_threshold && !sensor_latched) {
     s.spike_wait = p_.jump_window;
     s.spikes = 0;
     s.spike_value = c;
@@ -534,7 +540,9 @@ bool FaultObserver::make_interval(const Feedback& fb, const CommandHistory& cmds
     n = a - s.applied_seq;
   }
   if (n > static_cast<std::uint64_t>(kMaxGap + 1)) return false;
-  const double spacing = iv.dt / static_cast<double>(s.gap + 1);
+  // Commands go out once a cycle: across lost samples the gap's cycles space them; otherwise (two
+  // commands inside one sample interval, e.g. after a late answer was used) this cycle's length.
+  const double spacing = s.gap > 0 ? iv.dt / static_cast<double>(s.gap + 1) : dt;
   for (std::uint64_t i = 0; i < n; ++i) {
     const std::uint64_t seq = n == 1 ? a : s.applied_seq + 1 + i;
     const auto iu = static_cast<std::size_t>(i + 1);

@@ -122,9 +122,9 @@ inline const Command& CommandHistory::all_off() noexcept { return detail::kAllOf
 
 // Result of a driver call inside the cycle: never throws, never blocks past the given deadline.
 enum class IoStatus : std::uint8_t {
-  kOk = 0,        // all joints fresh
+  kOk = 0,        // every joint has a sample: fresh, or a late answer used (kStatusLate)
   kPartial,       // some joints missing/stale: see Feedback::status
-  kTimeout,       // nothing arrived before the deadline
+  kTimeout,       // no joint has a sample (nothing arrived before the deadline)
   kBusError,      // bus-off / interface down
 };
 
@@ -134,6 +134,8 @@ struct DriverCounters {
   std::uint64_t frames_rx = 0;
   std::uint64_t missing = 0;       // expected frames that never came
   std::uint64_t late = 0;          // frames that came after the cycle's deadline
+  std::uint64_t late_used = 0;     // of those, used as their joint's (older) sample: no fresh
+                                   // answer came, and the late one carries its sample time
   std::uint64_t duplicate = 0;     // same rolling counter twice
   std::uint64_t out_of_order = 0;  // rolling counter went backwards
   std::uint64_t checksum = 0;      // CRC / checksum failures

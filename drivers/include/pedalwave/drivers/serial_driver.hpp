@@ -9,7 +9,9 @@
 // (ppoll on the remaining time). Status packets are checked (CRC-16, framing, id, length, error
 // field) and classified with the rolling counter (8-bit echo of c). write() sends one Sync Write
 // (0x83) of the 12-byte command block at 100 (tagged with c) to every module; safe_stop() sends
-// it with the torque-off flag. Timeouts are `missing` (+ IoStatus::kTimeout/kPartial), CRC errors
+// it with the torque-off flag. A joint without a fresh answer takes the cycle's newest late one
+// (its own sample time: late_sample.hpp, `late_used`); with neither it is `missing`
+// (+ IoStatus::kTimeout/kPartial). CRC errors
 // `checksum` (also a module-reported CRC error, error number 3), framing/length/id errors and
 // short reads `malformed`.
 // Timing (Feedback::timing = kModule): the feedback block carries each module's timing record
@@ -29,6 +31,7 @@
 
 #include "pedalwave/drivers/dynamixel.hpp"
 #include "pedalwave/drivers/io.hpp"
+#include "pedalwave/drivers/late_sample.hpp"
 #include "pedalwave/drivers/module_clock.hpp"
 #include "pedalwave/drivers/rolling_counter.hpp"
 
@@ -101,9 +104,12 @@ class SerialDriver final : public Driver {
   std::array<ModuleClock, kMaxJoints> clocks_{};
   std::array<wire::ModuleTiming, kMaxJoints> late_timing_{};  // a late answer's record this cycle
   std::array<bool, kMaxJoints> have_late_{};
+  std::array<LateSample, kMaxJoints> late_{};      // the newest late answer this cycle
+  std::array<HandedOut, kMaxJoints> handed_{};     // the last sample time handed out
   std::array<std::uint64_t, 256> seq_of_tag_{};  // command counter c → Command::seq
   std::int64_t sync_wire_ns_ = 0;   // the sync-counter write's wire time [ns]
   std::int64_t sync_lower_ns_ = 0;  // no module can have sampled before this [ns]
+  std::array<std::int64_t, 256> sync_lower_of_{};  // the same, per SYNC counter (late answers)
 };
 
 }  // namespace pedalwave::drivers

@@ -13,8 +13,9 @@
 // duplicates, late frames (answers to older SYNCs, or received after the deadline), backwards
 // counters, CRC failures and malformed frames are counted in DriverCounters and marked in
 // Feedback::status of their joint (kStatusStale, kStatusOutOfOrder, kStatusChecksum). A joint
-// without a fresh frame at the deadline is kStatusMissing (counted in `missing`) and keeps its
-// previous values. Error frames (bus-off, error-passive, controller problems) are counted in
+// without a fresh frame at the deadline takes the cycle's newest late answer, which carries its
+// own sample time (late_sample.hpp, PROTOCOL.md §4: kStatusLate, counted in `late_used`); a joint
+// with neither is kStatusMissing (counted in `missing`) and keeps its previous values. Error frames (bus-off, error-passive, controller problems) are counted in
 // bus_errors and mark every joint kStatusBusError; read() then returns IoStatus::kBusError.
 // write() sends the commands tagged with c (classic: one command frame per joint + one gains frame
 // per cycle, round robin with changed gains first; FD: one command-group frame per 6 joints),
@@ -39,6 +40,7 @@
 
 #include "pedalwave/drivers/can_protocol.hpp"
 #include "pedalwave/drivers/io.hpp"
+#include "pedalwave/drivers/late_sample.hpp"
 #include "pedalwave/drivers/module_clock.hpp"
 #include "pedalwave/drivers/rolling_counter.hpp"
 
@@ -137,10 +139,13 @@ class SocketCanDriver final : public Driver {
   std::array<bool, kMaxJoints> have_timing_{};
   std::array<wire::ModuleTiming, kMaxJoints> late_timing_{};  // a late answer's record this cycle
   std::array<bool, kMaxJoints> have_late_{};
+  std::array<LateSample, kMaxJoints> late_{};      // the newest late answer this cycle
+  std::array<HandedOut, kMaxJoints> handed_{};     // the last sample time handed out
   std::array<ModuleClock, kMaxJoints> clocks_{};
   std::array<std::uint64_t, 256> seq_of_tag_{};
   std::int64_t sync_wire_ns_ = 0;   // SYNC frame's wire time at the configured bit rate [ns]
   std::int64_t sync_lower_ns_ = 0;  // no module can have sampled before this [ns]
+  std::array<std::int64_t, 256> sync_lower_of_{};  // the same, per SYNC counter (late answers)
 };
 
 }  // namespace pedalwave::drivers

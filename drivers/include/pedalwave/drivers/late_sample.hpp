@@ -1,0 +1,47 @@
+// A late answer is still a sample (drivers/PROTOCOL.md §1.1, §4). A module's answer to an older
+// SYNC, received after that cycle's deadline, carries the module's own sample time: it says
+// exactly when the values were measured, so they are as good as a fresh sample — only older.
+// A joint without a fresh answer this cycle therefore gets the newest late one (kStatusLate, its
+// own sample time) instead of nothing, provided it is newer than the last sample handed out.
+// Only a module that sends nothing at all is missing. Shared by the CAN and the serial drivers.
+#pragma once
+
+#include <cstdint>
+
+#include "pedalwave/drivers/wire.hpp"
+
+namespace pedalwave::drivers {
+
+struct LateSample {
+  double beta = 0.0, beta_dot = 0.0, deflection = 0.0;  // the late answer's values
+  std::uint16_t status = 0;                              // its module StatusBits [-]
+  std::uint8_t values_echo = 0;                          // SYNC counter it answered [-]
+  bool have_values = false;
+  wire::ModuleTiming timing{};                           // its timing record
+  std::uint8_t timing_echo = 0;                          // SYNC counter of the record [-]
+  bool have_timing = false;
+
+  void clear() noexcept { have_values = have_timing = false; }
+  // A late frame's values (later frames overwrite: answers arrive in bus order, newest last).
+  void offer_values(std::uint8_t echo, double b, double bd, double d, std::uint16_t st) noexcept {
+    beta = b, beta_dot = bd, deflection = d, status = st, values_echo = echo, have_values = true;
+  }
+  void offer_timing(std::uint8_t echo, const wire::ModuleTiming& t) noexcept {
+    timing = t, timing_echo = echo, have_timing = true;
+  }
+  // Values and the record of the same sample (on classic CAN they travel in two frames).
+  bool complete() const noexcept { return have_values && have_timing && values_echo == timing_echo; }
+};
+
+// The module-clock sample times handed out for one joint must increase: a late answer older than
+// the sample already handed out (a fresh one came in between) is not used.
+struct HandedOut {
+  std::uint32_t sample_us = 0;
+  bool any = false;
+  bool newer(std::uint32_t us) const noexcept {
+    return !any || static_cast<std::int32_t>(us - sample_us) > 0;
+  }
+  void take(std::uint32_t us) noexcept { sample_us = us, any = true; }
+};
+
+}  // namespace pedalwave::drivers

@@ -187,6 +187,7 @@ RunResult Runtime::run() {
   result_.cycles = metrics_.cycles;
   result_.overruns = metrics_.overruns;
   result_.skipped_periods = metrics_.skipped_periods;
+  result_.max_skipped = metrics_.max_skipped;
   result_.cycle_drops = cycles_.drops();
   result_.event_drops = events_.drops();
   return result_;

@@ -85,6 +85,7 @@ struct RunResult {
   std::uint64_t cycles = 0;              // cycles run [-]
   std::uint64_t overruns = 0;            // [-]
   std::uint64_t skipped_periods = 0;     // [-]
+  std::uint32_t max_skipped = 0;         // most periods skipped at once (one stall) [-]
   std::uint64_t cycle_drops = 0;         // CycleSamples dropped (ring full) [-]
   std::uint64_t event_drops = 0;         // EventSamples dropped (ring full) [-]
 };

@@ -227,8 +227,6 @@ void SerialDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns) no
     case FrameAge::kLate:
       ++counters_.late;
       status_[ju] |= kStatusLate;
-      late_timing_[ju] = fb.timing;  // still says when the module applied its command then
-      have_late_[ju] = true;
       late_[ju].offer_values(fb.echo, fb.beta, fb.beta_dot, fb.deflection, fb.status);
       late_[ju].offer_timing(fb.echo, fb.timing);
       break;
@@ -257,7 +255,6 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
   for (int j = 0; j < joints_; ++j) {
     drivers::begin_cycle(rc_[static_cast<std::size_t>(j)]);
     status_[static_cast<std::size_t>(j)] = 0;
-    have_late_[static_cast<std::size_t>(j)] = false;
     late_[static_cast<std::size_t>(j)].clear();
   }
   fresh_count_ = 0;
@@ -316,30 +313,23 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
     std::uint16_t st = status_[ju];
     out.sample_ns[ju] = 0;
     out.late_applied_ns[ju] = 0;
-    if (have_late_[ju] && clocks_[ju].started() && !late_timing_[ju].no_command) {
-      const wire::ModuleTiming& lt = late_timing_[ju];
+    if (late_[ju].have_timing && clocks_[ju].started() && !late_[ju].timing.no_command) {
+      const wire::ModuleTiming& lt = late_[ju].timing;
       out.late_applied_ns[ju] = clocks_[ju].to_host(lt.sample_us - lt.applied_age_us);
       out.late_applied_seq[ju] = seq_of_tag_[lt.applied_tag];
     }
     ModuleClock& clk = clocks_[ju];
     const LateSample& late = late_[ju];
     if (rc_[ju].fresh) {
-      const wire::ModuleTiming& t = last_[ju].timing;
-      out.sample_ns[ju] = clk.update(t.sample_us, sync_lower_ns_);
-      out.applied_ns[ju] = clk.to_host(t.sample_us - t.applied_age_us);
-      out.applied_seq[ju] = t.no_command ? kNoCommandSeq : seq_of_tag_[t.applied_tag];
-      handed_[ju].take(t.sample_us);
+      hand_out(last_[ju].timing, sync_lower_ns_, seq_of_tag_, 0xFFu, clk, handed_[ju], out, ju);
     } else if (late.complete() && handed_[ju].newer(late.timing.sample_us)) {
       // No fresh answer, but a late one: an older sample at its own (module) time. It updates the
       // clock with the lower bound of the SYNC it answered.
       const wire::ModuleTiming& t = late.timing;
       last_[ju] = dxl::FeedbackBlock{late.beta, late.beta_dot, late.deflection, late.status,
                                      late.values_echo, t};
-      out.sample_ns[ju] = clk.update(t.sample_us, sync_lower_of_[late.values_echo]);
-      out.applied_ns[ju] = clk.to_host(t.sample_us - t.applied_age_us);
-      out.applied_seq[ju] = t.no_command ? kNoCommandSeq : seq_of_tag_[t.applied_tag];
+      hand_out(t, sync_lower_of_[late.values_echo], seq_of_tag_, 0xFFu, clk, handed_[ju], out, ju);
       out.late_applied_ns[ju] = 0;
-      handed_[ju].take(t.sample_us);
       ++counters_.late_used;
       ++late_used;
     } else {

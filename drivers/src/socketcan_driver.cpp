@@ -330,11 +330,7 @@ void SocketCanDriver::take_feedback(int j, const can::ModuleFeedback& fb,
       ++counters_.late;
       status_[ju] |= kStatusLate;
       late_[ju].offer_values(fb.counter, fb.beta, fb.beta_dot, fb.deflection, fb.status);
-      if (t) {
-        late_timing_[ju] = *t;
-        have_late_[ju] = true;
-        late_[ju].offer_timing(fb.counter, *t);
-      }
+      if (t) late_[ju].offer_timing(fb.counter, *t);
       break;
     case FrameAge::kOutOfOrder:
       ++counters_.out_of_order;
@@ -362,8 +358,6 @@ void SocketCanDriver::handle_timing(const can_frame& f, std::int64_t stamp_ns) n
   if (echo != (sync_counter_ & can::kClassicCounterMask) || stamp_ns > deadline_ns_) {
     // An older SYNC's or a late record: not this cycle's timing, but it still says when the
     // module applied its command then (the observer bridges the lost sample with it).
-    late_timing_[ju] = t;
-    have_late_[ju] = true;
     late_[ju].offer_timing(echo, t);
     return;
   }
@@ -379,7 +373,6 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
     drivers::begin_cycle(rc_[static_cast<std::size_t>(j)]);
     status_[static_cast<std::size_t>(j)] = 0;
     have_timing_[static_cast<std::size_t>(j)] = false;
-    have_late_[static_cast<std::size_t>(j)] = false;
     late_[static_cast<std::size_t>(j)].clear();
   }
   fresh_count_ = 0;
@@ -427,8 +420,8 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
     out.sample_ns[ju] = 0;
     out.late_applied_ns[ju] = 0;
     const unsigned tag_mask = fd_mode_ ? 0xFFu : can::kClassicCounterMask;
-    if (have_late_[ju] && clocks_[ju].started() && !late_timing_[ju].no_command) {
-      const wire::ModuleTiming& lt = late_timing_[ju];
+    if (late_[ju].have_timing && clocks_[ju].started() && !late_[ju].timing.no_command) {
+      const wire::ModuleTiming& lt = late_[ju].timing;
       out.late_applied_ns[ju] = clocks_[ju].to_host(lt.sample_us - lt.applied_age_us);
       out.late_applied_seq[ju] = seq_of_tag_[lt.applied_tag & tag_mask];
     }
@@ -437,23 +430,16 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
     if (rc_[ju].fresh && !have_timing_[ju]) {
       st |= kStatusNoTiming;
     } else if (rc_[ju].fresh) {
-      const wire::ModuleTiming& t = timing_[ju];
-      out.sample_ns[ju] = clk.update(t.sample_us, sync_lower_ns_);
-      out.applied_ns[ju] = clk.to_host(t.sample_us - t.applied_age_us);
-      out.applied_seq[ju] = t.no_command ? kNoCommandSeq : seq_of_tag_[t.applied_tag & tag_mask];
-      handed_[ju].take(t.sample_us);
+      hand_out(timing_[ju], sync_lower_ns_, seq_of_tag_, tag_mask, clk, handed_[ju], out, ju);
     } else if (late.complete() && handed_[ju].newer(late.timing.sample_us)) {
       // No fresh answer, but a late one (values and record of the same SYNC): an older sample at
       // its own module time. It updates the clock with the lower bound of the SYNC it answered.
       const wire::ModuleTiming& t = late.timing;
       last_[ju] = can::ModuleFeedback{late.beta, late.beta_dot, late.deflection, late.status,
                                       late.values_echo};
-      out.sample_ns[ju] =
-          clk.update(t.sample_us, sync_lower_of_[late.timing_echo & can::kClassicCounterMask]);
-      out.applied_ns[ju] = clk.to_host(t.sample_us - t.applied_age_us);
-      out.applied_seq[ju] = t.no_command ? kNoCommandSeq : seq_of_tag_[t.applied_tag & tag_mask];
+      hand_out(t, sync_lower_of_[late.timing_echo & can::kClassicCounterMask], seq_of_tag_, tag_mask,
+               clk, handed_[ju], out, ju);
       out.late_applied_ns[ju] = 0;
-      handed_[ju].take(t.sample_us);
       ++counters_.late_used;
       ++late_used;
     } else {

@@ -6,8 +6,12 @@
 // Only a module that sends nothing at all is missing. Shared by the CAN and the serial drivers.
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
 
+#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/drivers/module_clock.hpp"
 #include "pedalwave/drivers/wire.hpp"
 
 namespace pedalwave::drivers {
@@ -43,5 +47,17 @@ struct HandedOut {
   }
   void take(std::uint32_t us) noexcept { sample_us = us, any = true; }
 };
+
+// Joint j's sample in `out` from its timing record t (fresh or late): the sample time through
+// the module clock (updated with `lower_ns`, no module sampled before it: the SYNC it answered),
+// the command it applied last (tag & tag_mask → Command::seq) and when. Notes the time handed out.
+inline void hand_out(const wire::ModuleTiming& t, std::int64_t lower_ns,
+                     const std::array<std::uint64_t, 256>& seq_of_tag, unsigned tag_mask,
+                     ModuleClock& clk, HandedOut& handed, Feedback& out, std::size_t j) noexcept {
+  out.sample_ns[j] = clk.update(t.sample_us, lower_ns);
+  out.applied_ns[j] = clk.to_host(t.sample_us - t.applied_age_us);
+  out.applied_seq[j] = t.no_command ? kNoCommandSeq : seq_of_tag[t.applied_tag & tag_mask];
+  handed.take(t.sample_us);
+}
 
 }  // namespace pedalwave::drivers

@@ -102,9 +102,7 @@ class SerialDriver final : public Driver {
   std::array<std::uint8_t, kMaxJoints * dxl::kCommandBlockSize> blocks_{};
   dxl::Packet pkt_{};
   std::array<ModuleClock, kMaxJoints> clocks_{};
-  std::array<wire::ModuleTiming, kMaxJoints> late_timing_{};  // a late answer's record this cycle
-  std::array<bool, kMaxJoints> have_late_{};
-  std::array<LateSample, kMaxJoints> late_{};      // the newest late answer this cycle
+  std::array<LateSample, kMaxJoints> late_{};      // the newest late answer (and record) this cycle
   std::array<HandedOut, kMaxJoints> handed_{};     // the last sample time handed out
   std::array<std::uint64_t, 256> seq_of_tag_{};  // command counter c → Command::seq
   std::int64_t sync_wire_ns_ = 0;   // the sync-counter write's wire time [ns]

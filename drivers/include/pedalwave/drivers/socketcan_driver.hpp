@@ -137,9 +137,7 @@ class SocketCanDriver final : public Driver {
   // Timing: this cycle's records, the module clocks, tag → Command::seq, the SYNC's lower bound.
   std::array<wire::ModuleTiming, kMaxJoints> timing_{};
   std::array<bool, kMaxJoints> have_timing_{};
-  std::array<wire::ModuleTiming, kMaxJoints> late_timing_{};  // a late answer's record this cycle
-  std::array<bool, kMaxJoints> have_late_{};
-  std::array<LateSample, kMaxJoints> late_{};      // the newest late answer this cycle
+  std::array<LateSample, kMaxJoints> late_{};      // the newest late answer (and record) this cycle
   std::array<HandedOut, kMaxJoints> handed_{};     // the last sample time handed out
   std::array<ModuleClock, kMaxJoints> clocks_{};
   std::array<std::uint64_t, 256> seq_of_tag_{};

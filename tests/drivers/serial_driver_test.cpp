@@ -184,8 +184,12 @@ TEST(SerialFaults, BitErrorsAreCrcFailures) {
       if (st[j] & pd::kStatusChecksum) {
         ++flagged;
       }
-  EXPECT_EQ(static_cast<std::uint64_t>(flagged), c.checksum);
-  EXPECT_GE(c.missing, c.checksum);
+  // The bit is per joint and cycle, the count per frame: a slow machine (ASan) can see a late
+  // corrupted answer and this cycle's corrupted one of the same joint in one cycle.
+  EXPECT_LE(static_cast<std::uint64_t>(flagged), c.checksum);
+  EXPECT_GE(static_cast<std::uint64_t>(flagged) + c.late, c.checksum);
+  // A joint whose answer failed its CRC has no fresh sample: missing, or a late answer used.
+  EXPECT_GE(c.missing + c.late_used, static_cast<std::uint64_t>(flagged));
   EXPECT_EQ(c.duplicate + c.out_of_order, 0u);
 }
 

@@ -227,9 +227,13 @@ TEST(CanFaults, BitErrorsAreChecksumFailuresOnTheirJoint) {
       const std::uint16_t st = log.status[i][j];
       if (st & pd::kStatusChecksum) ++flagged;
     }
-  EXPECT_EQ(static_cast<std::uint64_t>(flagged), c.checksum);
+  // The bit is per joint and cycle, the count per frame: a slow machine (ASan) can see a late
+  // corrupted answer and this cycle's corrupted one of the same joint in one cycle.
+  EXPECT_LE(static_cast<std::uint64_t>(flagged), c.checksum);
+  EXPECT_GE(static_cast<std::uint64_t>(flagged) + c.late, c.checksum);
   EXPECT_LE(c.missing, c.checksum + c.late + 4);
-  EXPECT_GE(c.missing, c.checksum);
+  // A joint whose answer failed its CRC has no fresh sample: missing, or a late answer used.
+  EXPECT_GE(c.missing + c.late_used, static_cast<std::uint64_t>(flagged));
   EXPECT_EQ(c.duplicate + c.out_of_order + c.malformed, 0u);
 }
 

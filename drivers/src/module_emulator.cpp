@@ -124,9 +124,23 @@ void ModuleBank::start_clock(std::int64_t t_ns) noexcept {
   no_command_.fill(true);
 }
 
+namespace {
+void keep_longest(std::atomic<std::int64_t>& longest, std::int64_t& last_ns, std::int64_t t_ns) {
+  if (last_ns >= 0 && t_ns - last_ns > longest.load(std::memory_order_relaxed))
+    longest.store(t_ns - last_ns, std::memory_order_relaxed);
+  if (t_ns > last_ns) last_ns = t_ns;
+}
+}  // namespace
+
+void ModuleBank::on_reply_sent(std::int64_t t_ns) noexcept {
+  stats_.replies_sent.fetch_add(1, std::memory_order_relaxed);
+  keep_longest(stats_.reply_gap_max_ns, last_reply_ns_, t_ns);
+}
+
 void ModuleBank::on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept {
   ++syncs_;
   stats_.syncs.fetch_add(1, std::memory_order_relaxed);
+  keep_longest(stats_.sync_gap_max_ns, last_sync_ns_, t_ns);
   start_clock(t_ns);
   // 1. Integrate up to the SYNC with the commands applied so far.
   plant_.advance_to(t_ns);
@@ -380,8 +394,7 @@ void CanModuleEmulator::flush(std::int64_t now) noexcept {
       blocked_ = true;
       return;
     }
-    if (r == static_cast<ssize_t>(p.size))
-      bank_.stats().replies_sent.fetch_add(1, std::memory_order_relaxed);
+    if (r == static_cast<ssize_t>(p.size)) bank_.on_reply_sent(now);
     head_ = (head_ + 1) % queue_.size();
   }
 }
@@ -562,7 +575,7 @@ void SerialModuleEmulator::flush(std::int64_t now) noexcept {
     }
     q.off += static_cast<std::size_t>(r);
     if (q.off < q.len) return;
-    bank_.stats().replies_sent.fetch_add(1, std::memory_order_relaxed);
+    bank_.on_reply_sent(now);
     head_ = (head_ + 1) % queue_.size();
   }
 }

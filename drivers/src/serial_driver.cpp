@@ -139,6 +139,7 @@ bool SerialDriver::write_all(const std::uint8_t* p, std::size_t n, std::int64_t 
 }
 
 void SerialDriver::receive(std::int64_t stamp_ns) noexcept {
+  bool got = false;
   for (;;) {
     if (rx_len_ == rx_.size()) {  // cannot happen with sane packets: drop and resynchronize
       ++counters_.malformed;
@@ -147,11 +148,13 @@ void SerialDriver::receive(std::int64_t stamp_ns) noexcept {
     const ssize_t r = ::read(fd_, rx_.data() + rx_len_, rx_.size() - rx_len_);
     if (r > 0) {
       rx_len_ += static_cast<std::size_t>(r);
+      got = true;
       continue;
     }
     if (r < 0 && errno == EINTR) continue;
     break;
   }
+  if (got) silence_.on_rx(stamp_ns, counters_);
   parse(stamp_ns);
 }
 

@@ -206,6 +206,7 @@ void SocketCanDriver::drain(std::int64_t rt_minus_mono_ns) noexcept {
       }
     }
     if (stamp == 0) stamp = detail::monotonic_ns();
+    silence_.on_rx(stamp, counters_);
     if (m.msg_flags & MSG_TRUNC) {
       ++counters_.frames_rx;
       ++counters_.malformed;

@@ -82,6 +82,8 @@ def main(path):
     for k in ("frames_tx", "frames_rx", "missing", "late", "duplicate", "out_of_order", "checksum",
               "malformed", "bus_errors", "tx_dropped", "rx_dropped"):
         need(counters, k, int, "driver")
+    if need(counters, "rx_silence_max_s", NUM, "driver") < 0:
+        raise SystemExit("driver_counters.rx_silence_max_s: negative")
     s = need(r, "settings", dict, "report")
     need(s, "stale_timeout_s", NUM, "settings")
     need(s, "read_budget", NUM, "settings")

@@ -129,6 +129,26 @@ TEST(SerialClean, NoFalseCountsAndPlantFollows) {
   EXPECT_LT(worst, 0.35);
 }
 
+// The link's longest silence, measured at both ends: a host that stops calling read() for 80 ms
+// gives the modules an 80 ms SYNC gap, and itself an 80 ms interval without a byte (one of the
+// four modules silent throughout: the others' answers are what the link carries).
+TEST(SerialClean, LinkSilenceIsMeasuredAtBothEnds) {
+  pd::FaultConfig f;
+  f.onset_sync = 1;
+  f.module[0].silent = true;
+  Rig rig(4, f);
+  run_cycles(*rig.drv, 50, 2 * kMs, 10 * kMs);
+  const std::int64_t quiet_link = rig.drv->counters().rx_silence_max_ns;
+  const std::int64_t quiet_syncs = rig.emu->stats().sync_gap_max_ns.load();
+  EXPECT_GT(quiet_link, 0);  // (no upper bound: a shared machine may itself pause the test)
+  EXPECT_GT(quiet_syncs, 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(80));
+  run_cycles(*rig.drv, 20, 2 * kMs, 10 * kMs);
+  EXPECT_GE(rig.drv->counters().rx_silence_max_ns, 80 * kMs);
+  EXPECT_GE(rig.emu->stats().sync_gap_max_ns.load(), 80 * kMs);
+  EXPECT_GE(rig.emu->stats().reply_gap_max_ns.load(), 80 * kMs);
+}
+
 TEST(SerialFaults, SilentModule) {
   pd::FaultConfig f;
   f.onset_sync = 51;

@@ -212,6 +212,7 @@ void write_run_report(std::ostream& out, const RunReportInput& in) {
   j.key("bus_errors").uint(c.bus_errors);
   j.key("tx_dropped").uint(c.tx_dropped);
   j.key("rx_dropped").uint(c.rx_dropped);
+  j.key("rx_silence_max_s").num(1e-9 * static_cast<double>(c.rx_silence_max_ns));
   j.close('}');
 
   j.key("settings").open('{');

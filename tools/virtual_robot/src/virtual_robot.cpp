@@ -94,6 +94,9 @@ std::string VirtualRobot::report() {
   o << "  SYNCs " << s.syncs.load() << ", replies sent " << s.replies_sent.load()
     << ", commands latched " << s.commands.load() << " (torque-off " << s.torque_off_cmds.load()
     << "), malformed/CRC-failed frames received " << s.rx_errors.load() << "\n";
+  o << "  longest gap between SYNCs received " << 1e-6 * static_cast<double>(s.sync_gap_max_ns.load())
+    << " ms, between replies sent " << 1e-6 * static_cast<double>(s.reply_gap_max_ns.load())
+    << " ms\n";
   o << "  faults injected: replies dropped " << s.replies_dropped.load() << ", corrupted "
     << s.replies_corrupted.load() << ", command lifetime expired " << s.lifetime_expired.load();
   o << " (latency " << static_cast<double>(f.reply_latency_ns) * 1e-6 << " ms, loss " << f.frame_loss

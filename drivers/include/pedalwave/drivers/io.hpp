@@ -144,6 +144,22 @@ struct DriverCounters {
   std::uint64_t tx_dropped = 0;    // writes the kernel/bus refused (EAGAIN, ENOBUFS)
   std::uint64_t rx_dropped = 0;    // frames the kernel dropped from a full receive queue
                                    // (SocketCAN SO_RXQ_OVFL; serial: input overrun)
+  std::int64_t rx_silence_max_ns = 0;  // the link's longest silence: the longest interval between
+                                       // two receptions of anything (bytes, frames) [ns]
+};
+
+// Keeps DriverCounters::rx_silence_max_ns: call on_rx(t) whenever something arrived at t.
+class SilenceMeter {
+ public:
+  void on_rx(std::int64_t t_ns, DriverCounters& c) noexcept {
+    if (have_ && t_ns - last_ns_ > c.rx_silence_max_ns) c.rx_silence_max_ns = t_ns - last_ns_;
+    if (!have_ || t_ns > last_ns_) last_ns_ = t_ns;
+    have_ = true;
+  }
+
+ private:
+  bool have_ = false;
+  std::int64_t last_ns_ = 0;
 };
 
 // The one interface the runtime cycle uses. Everything is sized and opened before the loop

@@ -117,6 +117,11 @@ struct EmulatorStats {
   std::atomic<std::uint64_t> rx_errors{0};       // malformed / CRC-failed frames received [-]
   std::atomic<std::uint64_t> first_off_sync{0};  // SYNCs handled when the first torque-off command
                                                  // reached a module that was on (0: none) [-]
+  // The longest interval between two SYNC arrivals, and between two replies handed to the
+  // kernel (host clock) [ns]: with the host's loop running, a long SYNC gap means the link (or
+  // this thread) held the SYNCs, not the host.
+  std::atomic<std::int64_t> sync_gap_max_ns{0};
+  std::atomic<std::int64_t> reply_gap_max_ns{0};
 };
 
 // The modules' state and fault logic, shared by the CAN and serial front ends.
@@ -149,6 +154,8 @@ class ModuleBank {
   const EmulatorConfig& config() const { return cfg_; }
   EmulatorStats& stats() { return stats_; }
   bool torque_off(int j) const { return off_[static_cast<std::size_t>(j)]; }
+  // A front end handed a whole reply to the kernel at t_ns (counts it, keeps the longest gap).
+  void on_reply_sent(std::int64_t t_ns) noexcept;
 
  private:
   void apply_now() noexcept;
@@ -159,6 +166,7 @@ class ModuleBank {
   EmulatorStats stats_;
   std::mt19937 rng_;
   std::uint64_t syncs_ = 0;
+  std::int64_t last_sync_ns_ = -1, last_reply_ns_ = -1;
   Feedback sample_{};
   Command latched_{};                      // latest command per joint (applied at SYNC)
   std::array<std::int64_t, kMaxJoints> last_cmd_ns_{};

@@ -82,6 +82,7 @@ class SerialDriver final : public Driver {
   int joints_ = 0;
   std::int64_t write_timeout_ns_ = 0;
   DriverCounters counters_{};
+  SilenceMeter silence_;
   std::uint64_t cycle_ = 0;
   std::uint8_t counter_ = 0;        // cycle counter c [-]
   int fresh_count_ = 0;

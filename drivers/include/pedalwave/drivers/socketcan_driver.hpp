@@ -115,6 +115,7 @@ class SocketCanDriver final : public Driver {
   int joints_ = 0;
   bool fd_mode_ = false;
   DriverCounters counters_{};
+  SilenceMeter silence_;
   std::uint64_t cycle_ = 0;         // host cycles (read() calls) [-]
   std::uint8_t sync_counter_ = 0;   // counter of the current SYNC [-]
   int fresh_count_ = 0;             // joints with a fresh frame this cycle [-]

@@ -89,6 +89,51 @@ TEST(Checks, MissingForSeveralCyclesIsASilentModuleNotOne) {
   EXPECT_EQ(o.faults()[0].joint, 1);
 }
 
+// Over a bus (module timing records) a few per cent of lost samples must not blind the encoder
+// consistency check: an offset jump whose first sample comes right after a lost one is an
+// encoder_jump on its joint, and the same lossy, jittered stream without the jump raises nothing.
+int first_fault_with_loss(bool jump, FaultClass& fault, int& joint) {
+  auto p = params();
+  p.period = 2e-3;
+  pw::observer::FaultObserver o(p);
+  pw::drivers::Feedback fb{};
+  pw::drivers::Command cmd{};
+  constexpr std::uint64_t kJump = 200;  // t = 0.4 s, after the observer's settle time
+  for (std::uint64_t k = 0; k < 400; ++k) {
+    frame(fb, k, p.period);
+    fb.timing = pw::drivers::FeedbackTiming::kModule;
+    for (int j = 0; j < 5; ++j) {
+      const auto i = static_cast<std::size_t>(j);
+      // Each module samples up to ±60 µs off the grid; nothing commanded yet (output off).
+      const std::int64_t jitter = static_cast<std::int64_t>((k * 7919 + 31 * j) % 121) - 60;
+      fb.sample_ns[i] = 1'000'000'000 + static_cast<std::int64_t>(k) * 2'000'000 + 1000 * jitter;
+      fb.applied_seq[i] = pw::drivers::kNoCommandSeq;
+      fb.applied_ns[i] = 0;
+    }
+    if (k % 7 == 3 || k == kJump - 1) fb.status[2] |= pw::drivers::kStatusMissing;
+    if (jump && k >= kJump) fb.beta[2] += 0.02;
+    o.observe(fb, cmd, static_cast<double>(k) * p.period, p.period);
+    if (o.fault_count() > 0) {
+      fault = o.faults()[0].fault;
+      joint = o.faults()[0].joint;
+      return static_cast<int>(k);
+    }
+  }
+  return -1;
+}
+
+TEST(Checks, LostSamplesDoNotBlindTheEncoderCheckOverModuleTiming) {
+  FaultClass fault = FaultClass::kNone;
+  int joint = -1;
+  EXPECT_EQ(first_fault_with_loss(false, fault, joint), -1)
+      << pw::runtime::to_string(fault) << " on joint " << joint;
+  const int k = first_fault_with_loss(true, fault, joint);
+  ASSERT_GE(k, 200) << pw::runtime::to_string(fault) << " on joint " << joint;
+  EXPECT_EQ(fault, FaultClass::kEncoderJump);
+  EXPECT_EQ(joint, 2);
+  EXPECT_LE(k, 200 + 25);  // the jump window (20 cycles) after the spike
+}
+
 TEST(Checks, RepeatedSeqIsStaleFrameData) {
   pw::observer::FaultObserver o(params());
   pw::drivers::Feedback fb{};

@@ -2,6 +2,9 @@
 // serial driver opens that path and the daemon walks against it; on SIGINT the tool stops and
 // reports what it did (its counts must match what the runtime did). Bad input: exit 2, one line.
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
 #include <poll.h>
 #include <signal.h>
 #include <sys/prctl.h>
@@ -109,7 +112,12 @@ TEST(VirtualRobotCli, PtyServesTheRuntimeAndReportsAtSigint) {
   config::DaemonConfig cfg = test::daemon_config(s, scene);
   cfg.driver.serial.device = path;
   auto drv = drivers::SerialDriver::open(cfg.driver.serial);  // the real open() of the device
-  const app::DaemonResult r = app::run_daemon(cfg, test::quiet(drv.get()));
+  // With --plots: the runtime's own signals and the observer's residuals, over the bus too.
+  const std::filesystem::path plots = std::filesystem::temp_directory_path() / "pw_vrobot_cli_plots";
+  std::filesystem::remove_all(plots);
+  app::DaemonOptions opt = test::quiet(drv.get());
+  opt.plots_dir = plots.string();
+  const app::DaemonResult r = app::run_daemon(cfg, opt);
   EXPECT_EQ(r.run.reason, runtime::ExitReason::kCycleLimit);
   EXPECT_EQ(r.run.fault, runtime::FaultClass::kNone) << runtime::to_string(r.run.fault);
   EXPECT_EQ(r.run.cycles, 2000u);
@@ -128,6 +136,27 @@ TEST(VirtualRobotCli, PtyServesTheRuntimeAndReportsAtSigint) {
   EXPECT_GE(c.frames_rx + c.missing, 5 * r.run.cycles - 5);
   EXPECT_NE(tool.text.find("outputs off"), std::string::npos) << "the safe stop reached the plant";
   EXPECT_NE(tool.text.find("cm/s on average"), std::string::npos);
+  EXPECT_NE(tool.text.find("longest gap between SYNCs received"), std::string::npos);
+
+  EXPECT_TRUE(std::filesystem::is_regular_file(plots / "runtime_signals.svg"));
+  EXPECT_TRUE(std::filesystem::is_regular_file(plots / "observer.svg"));
+  std::ifstream csv(plots / "cycles.csv");
+  std::string header, line;
+  ASSERT_TRUE(std::getline(csv, header));
+  EXPECT_EQ(header.rfind("t_s,t_controller_s,mode,fault_flags,wake_latency_us,read_us,beta_1,", 0), 0u)
+      << header;
+  EXPECT_NE(header.find(",residual_5"), std::string::npos) << header;
+  std::size_t rows = 0;
+  double worst = 0;
+  while (std::getline(csv, line)) {
+    ++rows;
+    const double r5 = std::stod(line.substr(line.rfind(',') + 1));  // residual_5: the last column
+    ASSERT_TRUE(std::isfinite(r5)) << line;
+    worst = std::max(worst, std::abs(r5));
+  }
+  EXPECT_EQ(rows, r.run.cycles / 10);  // every 10th cycle at 500 Hz
+  EXPECT_GT(worst, 0.0) << "the residual column carries the observer's residual";
+  std::filesystem::remove_all(plots);
 }
 
 TEST(VirtualRobotCli, BadInputExitsWithCode2AndOneLine) {

@@ -33,16 +33,47 @@ namespace pedalwave::app {
 
 namespace {
 
-// Keeps a decimated copy of the cycle samples for the plots (non-real-time side).
+// Keeps a compact, decimated copy of the cycle samples for the plots and cycles.csv (on the
+// telemetry consumer's thread, never the loop's): every `every`-th cycle, at most kMaxRows rows.
 class SampleRecorder final : public runtime::TelemetrySink {
  public:
+  static constexpr std::size_t kMaxRows = 1'000'000;  // 5.5 h at 500 Hz / 10 (≈ 30 B per joint)
+  static constexpr int kPerJoint = 7;  // β, β̇, deflection, α, τ_s, u, residual
+  struct Row {
+    std::int64_t t_ns = 0;
+    double t = 0;  // controller time [s]
+    runtime::Mode mode = runtime::Mode::kUnconfigured;
+    std::uint32_t fault_flags = 0;
+    float wake_us = 0, read_us = 0;
+  };
   explicit SampleRecorder(int every) : every_(every) {}
   void on_description(const runtime::RobotDescription&) override {}
   void on_cycle(const runtime::CycleSample& s) override {
-    if (s.seq % static_cast<std::uint64_t>(every_) == 0) samples.push_back(s);
+    if (s.seq % static_cast<std::uint64_t>(every_) != 0) return;
+    if (rows.size() >= kMaxRows) {
+      truncated = true;
+      return;
+    }
+    if (joints == 0) joints = s.joints;
+    rows.push_back({s.t_ns, s.t, s.mode, s.fault_flags, 1e-3f * static_cast<float>(s.wake_latency_ns),
+                    1e-3f * static_cast<float>(s.t_read_ns)});
+    for (int j = 0; j < joints; ++j) {
+      const auto k = static_cast<std::size_t>(j);
+      for (double v : {s.beta[k], s.beta_dot[k], s.deflection[k], s.alpha[k], s.tau_sea[k], s.u[k],
+                       s.residual[k]})
+        values.push_back(static_cast<float>(v));
+    }
   }
   void on_event(const runtime::EventSample&) override {}
-  std::vector<runtime::CycleSample> samples;
+  // Joint j's quantity q (0 … kPerJoint−1) in row i.
+  float at(std::size_t i, int j, int q) const {
+    return values[(i * static_cast<std::size_t>(joints) + static_cast<std::size_t>(j)) * kPerJoint +
+                  static_cast<std::size_t>(q)];
+  }
+  std::vector<Row> rows;
+  std::vector<float> values;  // rows × joints × kPerJoint
+  int joints = 0;
+  bool truncated = false;
 
  private:
   int every_;
@@ -83,8 +114,8 @@ double com_x(const model::Model& m, model::Data& data, const double* q) {
   return model::center_of_mass(m, data, qv).x();
 }
 
-void write_plots(const std::string& dir, drivers::SimDriver& sim, const SampleRecorder& rec,
-                 const config::DaemonConfig& cfg, std::ostream& out) {
+void write_plant_plots(const std::string& dir, drivers::SimDriver& sim,
+                       const config::DaemonConfig& cfg, std::ostream& out) {
   namespace tk = toolkit;
   std::filesystem::create_directories(dir);
   const model::Model& m = sim.sim().plant().model();
@@ -132,43 +163,104 @@ void write_plots(const std::string& dir, drivers::SimDriver& sim, const SampleRe
                                    {.label = "head tip", .t = t, .x = hx, .z = hz}};
   const auto s2 = tk::path_plot(paths, {.title = "COM and head paths", .view = tk::PathView::xt})
                       .save(dir + "/paths.svg");
-  // Joint signals from the runtime's own samples (what the robot measured and commanded).
-  std::vector<double> ts;
-  const int J = m.joints();
-  std::vector<tk::Signal> alpha, alpha_d, tau, u;
-  std::vector<double> lat;
-  for (int j = 0; j < J; ++j) {
-    alpha.push_back({.label = "α_" + std::to_string(j + 1)});
-    tau.push_back({.label = "τ_s," + std::to_string(j + 1)});
-    u.push_back({.label = "u_" + std::to_string(j + 1)});
-  }
-  for (const auto& s : rec.samples) {
-    ts.push_back(s.t);
-    for (int j = 0; j < J; ++j) {
-      const auto k = static_cast<std::size_t>(j);
-      alpha[k].y.push_back(s.alpha[k]);
-      tau[k].y.push_back(s.tau_sea[k]);
-      u[k].y.push_back(s.u[k]);
-    }
-    lat.push_back(s.wake_latency_ns * 1e-3);
-  }
-  std::vector<tk::SignalPanel> panels{
-      {.ylabel = "α [rad] (measured)", .signals = alpha},
-      {.ylabel = "SEA torque [N·m]", .signals = tau},
-      {.ylabel = "command u [N·m]", .signals = u},
-      {.ylabel = "wake latency [µs]", .signals = {{.label = "latency", .y = lat}}}};
-  const auto s3 = tk::stacked_time_series(ts, panels, {.title = "Runtime: joints, torques, loop timing"})
-                      .save(dir + "/runtime_signals.svg");
   std::vector<tk::SignalPanel> sp{{.ylabel = "COM speed [cm/s] (2 s window)",
                                    .signals = {{.label = "forward speed", .y = speed}}}};
   const auto s4 = tk::stacked_time_series(t, sp, {.title = "Forward speed"}).save(dir + "/speed.svg");
-  out << "plots: " << dir << "/{snake_shapes,paths,runtime_signals,speed}.svg"
-      << (s1.png ? " (+ .png)" : "") << "\n";
+  out << "plots: " << dir << "/{snake_shapes,paths,speed}.svg" << (s1.png ? " (+ .png)" : "")
+      << " (the simulated plant)\n";
   if (!s1.note.empty()) out << "  note: " << s1.note << "\n";
   (void)s2, (void)s4;
 }
 
+// What the runtime itself measured, commanded and concluded, on any driver (a bus or the
+// simulated plant): runtime_signals.svg, observer.svg (the residuals against their threshold,
+// the events marked) and cycles.csv (every recorded row).
+void write_runtime_plots(const std::string& dir, const SampleRecorder& rec,
+                         const runtime::EventLog& log, const std::vector<runtime::RunEvent>& events,
+                         double r_threshold, std::ostream& out) {
+  namespace tk = toolkit;
+  std::filesystem::create_directories(dir);
+  const int J = rec.joints;
+  const std::size_t n = rec.rows.size();
+  const std::string csv_path = dir + "/cycles.csv";
+  {
+    std::ofstream csv(csv_path);
+    if (!csv) throw std::runtime_error("--plots " + dir + ": cannot write " + csv_path);
+    static const char* kNames[SampleRecorder::kPerJoint] = {"beta", "beta_dot", "deflection", "alpha",
+                                                           "tau_sea", "u", "residual"};
+    csv << "t_s,t_controller_s,mode,fault_flags,wake_latency_us,read_us";
+    for (int j = 0; j < J; ++j)
+      for (const char* q : kNames) csv << "," << q << "_" << j + 1;
+    csv << "\n";
+    char buf[64];
+    for (std::size_t i = 0; i < n; ++i) {
+      const SampleRecorder::Row& r = rec.rows[i];
+      std::snprintf(buf, sizeof buf, "%.6f,%.6f,", static_cast<double>(r.t_ns - log.t0_ns()) * 1e-9, r.t);
+      csv << buf << runtime::to_string(r.mode) << "," << r.fault_flags << "," << r.wake_us << ","
+          << r.read_us;
+      for (int j = 0; j < J; ++j)
+        for (int q = 0; q < SampleRecorder::kPerJoint; ++q) csv << "," << rec.at(i, j, q);
+      csv << "\n";
+    }
+    if (!csv) throw std::runtime_error("--plots " + dir + ": write failed: " + csv_path);
+  }
+  if (n < 2 || J == 0) {
+    out << "plots: " << csv_path << " (" << n << " rows: too few to plot)\n";
+    return;
+  }
+  std::vector<double> ts(n), wake(n), read(n);
+  std::vector<tk::Signal> alpha, tau, u, res;
+  for (int j = 0; j < J; ++j) {
+    alpha.push_back({.label = "α_" + std::to_string(j + 1)});
+    tau.push_back({.label = "τ_s," + std::to_string(j + 1)});
+    u.push_back({.label = "u_" + std::to_string(j + 1)});
+    res.push_back({.label = "r_" + std::to_string(j + 1)});
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    ts[i] = static_cast<double>(rec.rows[i].t_ns - log.t0_ns()) * 1e-9;
+    wake[i] = rec.rows[i].wake_us;
+    read[i] = rec.rows[i].read_us;
+    for (int j = 0; j < J; ++j) {
+      const auto k = static_cast<std::size_t>(j);
+      alpha[k].y.push_back(rec.at(i, j, 3));
+      tau[k].y.push_back(rec.at(i, j, 4));
+      u[k].y.push_back(rec.at(i, j, 5));
+      res[k].y.push_back(rec.at(i, j, 6));
+    }
+  }
+  tk::TimeSeriesOptions to;
+  for (const runtime::RunEvent& e : events)
+    if (e.listed && e.sample.fault != runtime::FaultClass::kNone)
+      to.marks.push_back({.t = log.seconds(e.sample),
+                          .label = std::string(runtime::to_string(e.sample.fault)) + " j" +
+                                   std::to_string(e.sample.joint + 1)});
+  to.title = "Runtime: joints, torques, loop timing";
+  std::vector<tk::SignalPanel> panels{
+      {.ylabel = "α [rad] (measured)", .signals = alpha},
+      {.ylabel = "SEA torque [N·m]", .signals = tau},
+      {.ylabel = "command u [N·m]", .signals = u},
+      {.ylabel = "wake latency [µs]", .signals = {{.label = "latency", .y = wake}}}};
+  const auto s1 = tk::stacked_time_series(ts, panels, to).save(dir + "/runtime_signals.svg");
+  tk::SignalPanel rp{.ylabel = "momentum residual r [N·m]", .signals = res};
+  if (std::isfinite(r_threshold)) rp.hlines = {-r_threshold, -0.5 * r_threshold, 0.5 * r_threshold, r_threshold};
+  to.title = "Observer: residuals, ± the threshold and its half (the persistence level)";
+  std::vector<tk::SignalPanel> op{rp, {.ylabel = "read [µs]", .signals = {{.label = "read", .y = read}}}};
+  const auto s2 = tk::stacked_time_series(ts, op, to).save(dir + "/observer.svg");
+  out << "plots: " << dir << "/{runtime_signals,observer}.svg" << (s1.png ? " (+ .png)" : "") << ", "
+      << csv_path << " (" << n << " rows" << (rec.truncated ? ", truncated" : "") << ")\n";
+  (void)s2;
+}
+
 }  // namespace
+
+// The residual threshold the daemon's observer uses (NaN: no observer).
+double observer_threshold(const config::DaemonConfig& cfg) {
+#if PEDALWAVE_HAS_OBSERVER
+  if (cfg.observer) return observer::ObserverParams{}.r_threshold;
+#endif
+  (void)cfg;
+  return NAN;
+}
 
 std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg) {
 #if PEDALWAVE_HAS_OBSERVER
@@ -218,6 +310,14 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
     report.open(opt.report_json);
     if (!report) throw BadInput("--report-json " + opt.report_json + ": cannot open the file for writing");
   }
+  if (!opt.plots_dir.empty()) {  // likewise the plots' folder
+    std::error_code ec;
+    std::filesystem::create_directories(opt.plots_dir, ec);
+    if (ec || !std::filesystem::is_directory(opt.plots_dir))
+      throw BadInput("--plots " + opt.plots_dir + ": cannot create the folder (" +
+                     (ec ? ec.message() : std::string("not a directory")) + ")");
+  }
+
   // The walking marker (run_marker.hpp): an earlier run's marker means it did not end in order;
   // this run then does not auto-start — it waits in READY for an operator's start command.
   std::unique_ptr<RunMarker> marker;
@@ -250,7 +350,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
 
   std::vector<runtime::TelemetrySink*> sinks;
   if (marker) sinks.push_back(marker.get());
-  SampleRecorder recorder(10);
+  SampleRecorder recorder(std::max(1, static_cast<int>(std::lround(cfg.runtime.rt.rate_hz / 50.0))));
   if (!opt.plots_dir.empty()) sinks.push_back(&recorder);
 #if PEDALWAVE_HAS_DDS
   std::unique_ptr<telemetry::DdsTelemetry> dds;
@@ -334,6 +434,9 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
     if (!report) throw std::runtime_error("--report-json " + opt.report_json + ": write failed");
     out << "report: " << opt.report_json << "\n";
   }
+  if (!opt.plots_dir.empty())
+    write_runtime_plots(opt.plots_dir, recorder, res.event_log, res.events, observer_threshold(cfg),
+                        out);
   if (sim) {
     sim->stop();
     const drivers::SimRecording& rec = sim->recording();
@@ -357,7 +460,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
     }
     if (sim->plant_status() != model::StepStatus::kOk)
       out << "plant: " << model::to_string(sim->plant_status()) << "\n";
-    if (!opt.plots_dir.empty()) write_plots(opt.plots_dir, *sim, recorder, cfg, out);
+    if (!opt.plots_dir.empty()) write_plant_plots(opt.plots_dir, *sim, cfg, out);
   }
   return res;
 }

@@ -168,6 +168,39 @@ TEST(Daemon, AnUnwritableReportPathIsRefusedBeforeTheRun) {
   }
 }
 
+TEST(Daemon, APlotsFolderThatCannotBeCreatedIsRefusedBeforeTheRun) {
+  try {
+    app::run_daemon(lockstep(1.0), {.plots_dir = "/proc/pedalwave-no/plots", .telemetry = false,
+                                    .print = false});
+    FAIL() << "expected a refusal";
+  } catch (const app::BadInput& e) {
+    EXPECT_NE(std::string(e.what()).find("--plots /proc/pedalwave-no/plots: cannot create the folder"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+// The simulated plant's --plots: the plant's figures and the runtime's own (any driver), the CSV
+// with one row per 20 cycles at 1 kHz (50 Hz) and the residual columns.
+TEST(Daemon, PlotsWriteThePlantAndTheRuntimeFiguresAndTheCycleCsv) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("pw_daemon_plots_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const auto r = app::run_daemon(lockstep(2.0), {.plots_dir = dir.string(), .telemetry = false,
+                                                 .print = false});
+  for (const char* f : {"snake_shapes.svg", "paths.svg", "speed.svg", "runtime_signals.svg",
+                        "observer.svg", "cycles.csv"})
+    EXPECT_TRUE(fs::is_regular_file(dir / f)) << f;
+  std::ifstream csv(dir / "cycles.csv");
+  std::string header, line;
+  ASSERT_TRUE(std::getline(csv, header));
+  EXPECT_NE(header.find(",residual_1,"), std::string::npos) << header;
+  std::size_t rows = 0;
+  while (std::getline(csv, line)) ++rows;
+  EXPECT_EQ(rows, r.run.cycles / 20);
+  fs::remove_all(dir);
+}
+
 // ---- exit status and the walking marker (DEPLOY.md "Service policy") ----------------------------
 
 namespace {

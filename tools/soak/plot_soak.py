@@ -38,14 +38,27 @@ def main(soak_json, png):
         lo = [b[0] for b in s["bins"]]
         width = [b[1] - b[0] for b in s["bins"]]
         count = [b[2] for b in s["bins"]]
-        ax.bar(lo, count, width=width, align="edge", color="tab:blue", edgecolor="none")
+        # The histogram's last bin is an overflow bin (e.g. 5 ms … the maximum): drawn hatched, so
+        # its width is not read as weight.
+        wide = len(lo) > 1 and s["bins"][-1][1] > 2 * s["bins"][-1][0]
+        n = len(lo) - 1 if wide else len(lo)
+        ax.bar(lo[:n], count[:n], width=width[:n], align="edge", color="tab:blue", edgecolor="none")
+        if wide:
+            ax.bar(lo[-1:], count[-1:], width=width[-1:], align="edge", facecolor="none",
+                   edgecolor="tab:blue", hatch="//", label="%d in %g … %g" % (count[-1], lo[-1], lo[-1] + width[-1]))
         ax.set_yscale("log")
+        # Log time axis: the bulk (tens of µs) and the rare 100 ms outliers in one view.
+        ax.set_xscale("log")
+        rate = report.get("rate_hz")
+        if isinstance(rate, (int, float)) and rate > 0:
+            ax.axvline(1e6 / rate, color="tab:red", ls="--", lw=1, label="period")
+        ax.legend(fontsize=7)
         ax.set_xlabel(name + " [µs]")
         ax.set_ylabel("cycles")
         ax.set_title("%s: p50 %s, p99 %s, max %s µs" % (name, s.get("p50"), s.get("p99"), s.get("max")), fontsize=9)
         used = [b for b in s["bins"] if b[2] > 0]
         if used:
-            ax.set_xlim(used[0][0], used[-1][1])
+            ax.set_xlim(max(used[0][0], 0.1), max(used[-1][1], 1e6 / rate if isinstance(rate, (int, float)) and rate > 0 else 0) * 1.2)
 
     ax = fig.add_subplot(grid[1, :])
     for proc, color in (("runtime", "tab:red"), ("virtual_robot", "tab:green")):

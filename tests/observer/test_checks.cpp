@@ -1,6 +1,7 @@
 // The observer's configuration errors, data checks and verdict assembly, on synthetic feedback.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -132,6 +133,56 @@ TEST(Checks, LostSamplesDoNotBlindTheEncoderCheckOverModuleTiming) {
   EXPECT_EQ(fault, FaultClass::kEncoderJump);
   EXPECT_EQ(joint, 2);
   EXPECT_LE(k, 200 + 25);  // the jump window (20 cycles) after the spike
+}
+
+// The start from rest, as over a bus: the modules torque-off, then the first command (k_d = 15,
+// the gait's rate β̇_ref = 2.47 rad/s) applied half a period after a sample. The motor follows
+// within J/k_d (0.2 ms): J β̈ = k_d (β̇_ref − β̇), exactly, no spring torque. The residual of
+// the interval that holds the torque-on split stays at rounding level: β at the split comes from
+// the motion before it, not from a cubic through both samples (which put it 0.3·T·Δβ̇ off and
+// left an unexplained 0.009 N·m·s: |r| ≈ 0.09 N·m, three times the threshold).
+TEST(Residual, ATorqueOnSplitInsideAnIntervalLeavesNoImpulse) {
+  auto p = params();
+  p.period = 2e-3;
+  pw::observer::FaultObserver o(p);
+  const double J = p.robot.n * p.robot.n * p.robot.I_r, kd = 15.0, v = 2.47, tau = J / kd;
+  const double T = p.period, t_on = 0.4 + 0.5 * T;
+  std::array<pw::drivers::Command, 2> ring{};
+  ring[0].seq = 0;
+  ring[0].torque_off = true;
+  ring[1].seq = 1;
+  for (int j = 0; j < 5; ++j) {
+    ring[1].kd[static_cast<std::size_t>(j)] = kd;
+    ring[1].beta_dot_ref[static_cast<std::size_t>(j)] = v;
+  }
+  pw::drivers::Feedback fb{};
+  fb.joints = 5;
+  fb.timing = pw::drivers::FeedbackTiming::kModule;
+  const std::int64_t base = 1'000'000'000;
+  double worst = 0.0;
+  for (std::uint64_t k = 0; k < 300; ++k) {
+    const double t = static_cast<double>(k) * T;
+    const bool on = t >= t_on;
+    const double s = on ? t - t_on : 0.0;
+    fb.seq = k + 1;
+    for (int j = 0; j < 5; ++j) {
+      const auto i = static_cast<std::size_t>(j);
+      fb.beta[i] = 0.3 * j + (on ? v * (s - tau * (1 - std::exp(-s / tau))) : 0.0);
+      fb.beta_dot[i] = on ? v * (1 - std::exp(-s / tau)) : 0.0;
+      // A live deflection sensor (a constant code would be deflection_stuck); K·d ≤ 3e-6 N·m.
+      fb.deflection[i] = 1e-6 * static_cast<double>(static_cast<int>(k % 3) - 1);
+      fb.status[i] = 0;
+      fb.sample_ns[i] = base + std::llround(t * 1e9);
+      fb.applied_seq[i] = on ? 1 : 0;
+      fb.applied_ns[i] = on ? base + std::llround(t_on * 1e9) : base;
+    }
+    const pw::drivers::CommandHistory cmds(ring.data(), 2, t + T > t_on ? 1 : 0);
+    o.observe(fb, cmds, t, T);
+    if (t > t_on - T)
+      for (int j = 0; j < 5; ++j) worst = std::max(worst, std::abs(o.residual()[static_cast<std::size_t>(j)]));
+  }
+  EXPECT_LT(worst, 1e-3 * p.r_threshold) << "the torque-on split left an impulse in the residual";
+  EXPECT_EQ(o.fault_count(), 0) << pw::runtime::to_string(o.faults()[0].fault);
 }
 
 TEST(Checks, RepeatedSeqIsStaleFrameData) {

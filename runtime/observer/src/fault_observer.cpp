@@ -79,6 +79,7 @@ struct FaultObserver::Joint {
   double spike_value = 0;
   double prev_ref_rate = 0;  // β̇_ref of the previous command [rad/s]
   int cmd_settle = 0;        // cycles left without consistency checks after a command step
+  bool r_started = false;    // the residual's filter was reset at the settle time
   // Link-side filters: α (2nd order: α_f, α̇_f, α̈_f), β̇ (1st order → β̈_f)
   bool filt_init = false;
   double af = 0, afd = 0, afdd = 0, bdf = 0, bdd = 0;
@@ -275,6 +276,13 @@ double law_integral(const Command& c, std::size_t k, double L, double ba, double
   return L * c0 - c.kp[k] * L * 0.5 * (ba + bb) - c.kd[k] * (bb - ba);
 }
 
+// The law's torque at (β, β̇) [N·m].
+double law_torque(const Command& c, std::size_t k, double b, double bd, double u_max) noexcept {
+  if (c.torque_off) return 0.0;
+  const double u = c.tau[k] + c.kp[k] * (c.beta_ref[k] - b) + c.kd[k] * (c.beta_dot_ref[k] - bd);
+  return u_max > 0 ? std::clamp(u, -u_max, u_max) : u;
+}
+
 double law_offset(const Command& c, std::size_t k) noexcept {
   return c.torque_off ? 0.0 : c.tau[k] + c.kp[k] * c.beta_ref[k] + c.kd[k] * c.beta_dot_ref[k];
 }
@@ -380,6 +388,12 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
   // command when the module applied new ones inside the interval; β, β̇ at each split from the
   // cubic Hermite interpolant of the two samples (the k_d terms telescope: exact whatever the
   // splits, so the interval's quantization noise cancels against its neighbours' as it must).
+  // Except where the damping changes at a split (torque on or off: the start, a stop): there the
+  // k_d terms do not telescope, and the module's response to the new law (within J/k_d, 0.2 ms)
+  // is faster than the cubic follows — at the start from rest into the gait's rate the cubic put
+  // β at the split 0.3·T·Δβ̇ off (≈ 6e-4 rad at 500 Hz, × k_d = 15: an unexplained 0.009 N·m·s,
+  // the bus's start-up impulse). There β comes from the motion under the law before the split:
+  // constant acceleration (u − K·deflection − b_m·β̇)/J from the piece's start.
   double Iu = 0.0;  // ∫u dt [N·m·s]
   if (iv.pieces == 1) {
     Iu = law_integral(*iv.cmd[0], k, dt, b0, bd0, b1, bd1, p_.u_max);
@@ -396,7 +410,21 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
       const auto iu = static_cast<std::size_t>(i);
       const double tb = i + 1 < iv.pieces ? iv.start[iu + 1] : dt;
       double bb = b1, bdb = bd1;
-      if (i + 1 < iv.pieces) hermite(tb, bb, bdb);
+      if (i + 1 < iv.pieces) {
+        const Command& now = *iv.cmd[iu];
+        const Command& next = *iv.cmd[iu + 1];
+        const double kd_now = now.torque_off ? 0.0 : now.kd[k];
+        const double kd_next = next.torque_off ? 0.0 : next.kd[k];
+        if (std::abs(kd_next - kd_now) > 1e-9 * std::max(std::abs(kd_now), std::abs(kd_next))) {
+          const double h = tb - ta;
+          const double d_a = d0 + (d1 - d0) * (ta / dt);
+          const double acc = (law_torque(now, k, ba, bda, p_.u_max) - K * d_a - p_.motor_viscous * bda) / J_;
+          bb = ba + bda * h + 0.5 * acc * h * h;
+          bdb = bda + acc * h;
+        } else {
+          hermite(tb, bb, bdb);
+        }
+      }
       Iu += law_integral(*iv.cmd[iu], k, tb - ta, ba, bda, bb, bdb, p_.u_max);
       ta = tb;
       ba = bb;
@@ -408,11 +436,15 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
   const double e = J_ * (bd1 - bd0) - (Iu - Is - Ib);      // unexplained impulse
   const double a = 1.0 - std::exp(-p_.K_O * dt);
   double& r = r_[k];
-  // The residual starts at the settle time: its filter holds nothing of the start-up transient
-  // (over a bus the first cycles leave an impulse of ≈ 6 % of the first command's kick, up to
-  // 0.09 N·m in r at 250 Hz, decaying with 1/K_O; at the settle time its tail still crossed the
-  // threshold in 2 of 12 walks and opened a classification window: the start-up false alarm).
-  r = settled ? r + a * (e / dt - r) : 0.0;
+  // The residual restarts at the settle time: its filter holds nothing of the start-up transient
+  // (the module PD's start from rest; over a bus, before the torque-on split above, the first
+  // cycles left an impulse up to 0.09 N·m in r, decaying with 1/K_O, whose tail still crossed the
+  // threshold at the settle time in 2 of 12 walks: the start-up false alarm ≈ 2.55 s into a run).
+  if (settled && !s.r_started) {
+    r = 0.0;
+    s.r_started = true;
+  }
+  r += a * (e / dt - r);
   const double x[4] = {Iu / dt, Is / dt, (b1 - b0) / dt, 1.0};
   for (int i = 0; i < 4; ++i) s.phi[static_cast<std::size_t>(i)] += a * (x[i] - s.phi[static_cast<std::size_t>(i)]);
 

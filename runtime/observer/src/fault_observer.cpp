@@ -586,9 +586,20 @@ bool FaultObserver::make_interval(const Feedback& fb, const CommandHistory& cmds
     if (iv.cmd[iu] == nullptr) return false;
     // When it took effect: reported (the last one; a late answer's record), else spaced back.
     double at = t_last - static_cast<double>(n - 1 - i) * spacing;
+    bool reported = seq == a;
     for (int q = 0; q < s.known && seq != a; ++q)
-      if (s.known_seq[static_cast<std::size_t>(q)] == seq)
+      if (s.known_seq[static_cast<std::size_t>(q)] == seq) {
         at = static_cast<double>(s.known_ns[static_cast<std::size_t>(q)] - s.sample_ns) * 1e-9;
+        reported = true;
+      }
+    // A torque on/off switch (k_d changes) at an estimated time: its error is Δk_d·β̇_ref times
+    // the estimate's error (15 N·m·s/rad · 2.5 rad/s · a few ms: several times the threshold's
+    // impulse) — not integrated.
+    const Command& before = *iv.cmd[iu - 1];
+    const double kd_before = before.torque_off ? 0.0 : before.kd[k];
+    const double kd_after = iv.cmd[iu]->torque_off ? 0.0 : iv.cmd[iu]->kd[k];
+    if (!reported && std::abs(kd_after - kd_before) > 1e-9 * std::max(std::abs(kd_before), std::abs(kd_after)))
+      return false;
     iv.start[iu] = std::clamp(at, iv.start[iu - 1], iv.dt);
   }
   iv.pieces = static_cast<int>(n) + 1;

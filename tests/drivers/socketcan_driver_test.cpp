@@ -275,7 +275,8 @@ void late_answers_are_used(bool fd) {
     EXPECT_LE(count_bit(log, 0, j, pd::kStatusMissing), 8);
   }
   EXPECT_EQ(log.io[0], pd::IoStatus::kTimeout);
-  EXPECT_LE(std::count(log.io.begin() + 2, log.io.end(), pd::IoStatus::kTimeout), 3);
+  // A cycle with no answer at all is a hiccup on every joint: the same 10 % budget as missing.
+  EXPECT_LE(std::count(log.io.begin() + 2, log.io.end(), pd::IoStatus::kTimeout), 8);
   EXPECT_EQ(c.duplicate + c.out_of_order + c.checksum + c.malformed, 0u);
 }
 

@@ -283,6 +283,13 @@ double law_torque(const Command& c, std::size_t k, double b, double bd, double u
   return u_max > 0 ? std::clamp(u, -u_max, u_max) : u;
 }
 
+// Whether the module's damping differs between two commands (torque off counts as k_d = 0): at
+// such a switch the k_d terms of ∫u dt do not telescope.
+bool damping_changes(const Command& a, const Command& b, std::size_t k) noexcept {
+  const double ka = a.torque_off ? 0.0 : a.kd[k], kb = b.torque_off ? 0.0 : b.kd[k];
+  return std::abs(kb - ka) > 1e-9 * std::max(std::abs(ka), std::abs(kb));
+}
+
 double law_offset(const Command& c, std::size_t k) noexcept {
   return c.torque_off ? 0.0 : c.tau[k] + c.kp[k] * c.beta_ref[k] + c.kd[k] * c.beta_dot_ref[k];
 }
@@ -412,10 +419,7 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
       double bb = b1, bdb = bd1;
       if (i + 1 < iv.pieces) {
         const Command& now = *iv.cmd[iu];
-        const Command& next = *iv.cmd[iu + 1];
-        const double kd_now = now.torque_off ? 0.0 : now.kd[k];
-        const double kd_next = next.torque_off ? 0.0 : next.kd[k];
-        if (std::abs(kd_next - kd_now) > 1e-9 * std::max(std::abs(kd_now), std::abs(kd_next))) {
+        if (damping_changes(now, *iv.cmd[iu + 1], k)) {
           const double h = tb - ta;
           const double d_a = d0 + (d1 - d0) * (ta / dt);
           const double acc = (law_torque(now, k, ba, bda, p_.u_max) - K * d_a - p_.motor_viscous * bda) / J_;
@@ -595,11 +599,7 @@ bool FaultObserver::make_interval(const Feedback& fb, const CommandHistory& cmds
     // A torque on/off switch (k_d changes) at an estimated time: its error is Δk_d·β̇_ref times
     // the estimate's error (15 N·m·s/rad · 2.5 rad/s · a few ms: several times the threshold's
     // impulse) — not integrated.
-    const Command& before = *iv.cmd[iu - 1];
-    const double kd_before = before.torque_off ? 0.0 : before.kd[k];
-    const double kd_after = iv.cmd[iu]->torque_off ? 0.0 : iv.cmd[iu]->kd[k];
-    if (!reported && std::abs(kd_after - kd_before) > 1e-9 * std::max(std::abs(kd_before), std::abs(kd_after)))
-      return false;
+    if (!reported && damping_changes(*iv.cmd[iu - 1], *iv.cmd[iu], k)) return false;
     iv.start[iu] = std::clamp(at, iv.start[iu - 1], iv.dt);
   }
   iv.pieces = static_cast<int>(n) + 1;

@@ -20,7 +20,8 @@ cmake -S . -B build/release -G Ninja -DCMAKE_BUILD_TYPE=Release -DPEDALWAVE_WERR
       -DCMAKE_INSTALL_PREFIX=/usr >/dev/null  # the Debian package's prefix (DEPLOY.md)
 cmake --build build/release -j"$jobs"
 step "[1/4] ctest (host; vcan tests run in step 4)"
-(cd build/release && ctest --output-on-failure -j"$jobs" --timeout 900 -LE vcan)
+(cd build/release && ctest --output-on-failure -j"$jobs" --timeout 900 -LE vcan) ||
+  { bash tools/scripts/ctest-digest.sh build/release; exit 1; }
 
 step "[2/4] ASan+UBSan build (-O2, no debug info: debug info doubles the Eigen-heavy compile time), -Werror"
 cmake -S . -B build/asan -G Ninja -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O2 -DNDEBUG" \
@@ -28,7 +29,8 @@ cmake -S . -B build/asan -G Ninja -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="-O2
 cmake --build build/asan -j"$jobs"
 step "[2/4] ctest under ASan+UBSan (without label slow)"
 (cd build/asan && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-   ctest --output-on-failure -j"$jobs" --timeout 900 -LE "slow|vcan")
+   ctest --output-on-failure -j"$jobs" --timeout 900 -LE "slow|vcan") ||
+  { bash tools/scripts/ctest-digest.sh build/asan; exit 1; }
 
 step "[3/4] fuzzing the protocol decoders (libFuzzer, 10 s each)"
 bash tools/scripts/fuzz.sh 10

@@ -138,8 +138,14 @@ TEST(BusModel, ObserverIsExactOverTheModulesTiming) {
   s.observer = true;
   const WalkResult blind = test::walk_bus_model(s, scene(), 0.5, /*report_timing=*/false);
   print("bus model 1 kHz +0.5, no timing", blind, blind.speed);
-  EXPECT_EQ(blind.daemon.run.reason, runtime::ExitReason::kFault)
-      << "without the timing records the half-period delay must trip the residual";
+  // Which class the observer names for a timing error is arbitrary (no class is a timing
+  // error; a stop-severity class before the deflection-class refit, now actuator_torque and
+  // motor_friction): that the residual tripped is what matters.
+  int residual_faults = 0;
+  for (const runtime::RunEvent& e : blind.daemon.events)
+    if (e.listed && e.sample.fault != runtime::FaultClass::kNone) ++residual_faults;
+  EXPECT_GT(residual_faults, 0) << "without the timing records the half-period delay must trip the residual: "
+                                << blind.daemon.exit_line;
 }
 
 // Lost replies (5 % of them, deterministic): the observer skips the intervals it cannot integrate

@@ -500,12 +500,31 @@ void FaultObserver::classify(int j, double t) {
     G.diagonal().array() += ridge * (tr > 0 ? tr : 1.0);
     return Eigen::Vector4d(G.ldlt().solve(g0));
   };
-  const Eigen::Vector4d th = solve(s.G, s.g, 1e-9) - solve(s.G_nom, s.g_nom, 1e-3);
+  const Eigen::Vector4d th_nom = solve(s.G_nom, s.g_nom, 1e-3);
+  Eigen::Vector4d th = solve(s.G, s.g, 1e-9) - th_nom;
   int best = 0;
   double best_c = -1.0;
   for (int i = 0; i < 4; ++i) {
     const double contribution = std::abs(th(i)) * std::sqrt(s.G(i, i) / s.n);
     if (contribution > best_c) best_c = contribution, best = i;
+  }
+  // A deflection sensor class (K·deflection or the constant): decided again by the fit of the
+  // window's departure Δr = r − θ_nom·φ on those two regressors alone. A deflection bias δ enters
+  // the K·deflection regressor too: K·(deflection + δ) = u − J β̈ − b_m β̇ + K δ, so after the
+  // bias the four regressors are nearly dependent, and θ_u = −θ_s (with θ_β̇) fits the constant
+  // Δr = K δ up to J β̈. In lockstep the four-regressor fit still resolves it; over a bus the
+  // residual's noise does not allow it: a bias was named deflection_scale or spring_broken in one
+  // of three injections. Without u the two are separated by K·deflection's variation over the gait.
+  if (best == 1 || best == 3) {
+    const Eigen::Vector4d gd = s.g - s.G * th_nom;  // Σ φ Δr over the window
+    Eigen::Matrix2d G2;
+    G2 << s.G(1, 1), s.G(1, 3), s.G(3, 1), s.G(3, 3);
+    const Eigen::Vector2d ac = G2.ldlt().solve(Eigen::Vector2d(gd(1), gd(3)));
+    if (ac.allFinite()) {
+      th(1) = ac(0);
+      th(3) = ac(1);
+      best = std::abs(ac(0)) * std::sqrt(s.G(1, 1) / s.n) > std::abs(ac(1)) ? 1 : 3;
+    }
   }
   const double K = K_[static_cast<std::size_t>(j)];
   switch (best) {

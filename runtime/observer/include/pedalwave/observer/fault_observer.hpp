@@ -29,7 +29,9 @@
 //        spring stiffness × s_K:   r = (1 − s_K) K·deflection     (named broken when ≥ spring_broken)
 //        deflection bias δ:        r = K δ
 //    After |r| crosses r_threshold, a window of t_classify is least-squares fitted with all four
-//    regressors; the largest contribution |θ_i|·rms(x_i) names the class.
+//    regressors; the largest contribution |θ_i|·rms(x_i) names the class (between K·deflection
+//    and the constant — deflection scale / spring against bias — a fit on those two alone decides:
+//    after a bias the four are dependent up to J β̈; README §1).
 // 2. Sensor and data checks (per joint, before the residual; a joint failing them is not
 //    integrated): non-finite or out-of-range values (kImplausible); kStatusMissing for
 //    missing_cycles in a row or a whole frame frozen (kModuleSilent); stale / out-of-order flags

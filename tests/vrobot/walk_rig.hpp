@@ -269,7 +269,16 @@ class BusModelDriver final : public drivers::Driver {
     seq_of_tag_.fill(drivers::kNoCommandSeq);
   }
   int joints() const override { return bank_.joints(); }
+  // A host stall: from read number `at_read` on, the bus time runs `ns` ahead of the loop's (the
+  // modules got no SYNC, so took no sample, for that long; the plant went on under the held
+  // commands) — what a loop descheduled for ns looks like on the bus.
+  void stall(int at_read, std::int64_t ns) {
+    stall_at_ = at_read;
+    stall_ns_ = ns;
+  }
   drivers::IoStatus read(std::int64_t now_ns, std::int64_t, drivers::Feedback& out) override {
+    if (++reads_ == stall_at_) offset_ns_ += stall_ns_;
+    now_ns += offset_ns_;
     now_ = now_ns;
     bank_.on_sync(++counter_, now_ns);
     const drivers::Feedback& s = bank_.sample();
@@ -363,20 +372,29 @@ class BusModelDriver final : public drivers::Driver {
   std::uint8_t counter_ = 0;
   std::uint64_t seq_ = 0;
   std::int64_t now_ = 0;
+  int reads_ = 0, stall_at_ = 0;
+  std::int64_t stall_ns_ = 0, offset_ns_ = 0;
 };
 
 // The runtime (lockstep loop clock) against the bus model: deterministic. delay: the command
 // transport delay as a fraction of the period (0: applied at the sample instant).
+// stall_at_cycle > 0: the host stalls there for stall_periods (BusModelDriver::stall);
+// plots_dir: the daemon's --plots (cycles.csv with the residuals).
 inline WalkResult walk_bus_model(WalkSetup s, const model::Scene& scene, double delay,
-                                 bool report_timing = true, double loss = 0.0) {
+                                 bool report_timing = true, double loss = 0.0,
+                                 int stall_at_cycle = 0, int stall_periods = 0,
+                                 const std::string& plots_dir = {}) {
   s.lockstep = true;
   if (s.transport == Transport::kSim) s.transport = Transport::kCanFd;
   vrobot::PlantOptions po;
   po.record_capacity = static_cast<std::size_t>(s.duration * 100 * 2) + 1000;
   vrobot::SimulationPlant plant(scene, po);
   BusModelDriver drv(plant, std::llround(delay * 1e9 / s.rate_hz), 40.0, report_timing, loss);
+  if (stall_at_cycle > 0) drv.stall(stall_at_cycle, std::llround(stall_periods * 1e9 / s.rate_hz));
   WalkResult r;
-  r.daemon = app::run_daemon(daemon_config(s, scene), quiet(&drv));
+  app::DaemonOptions o = quiet(&drv);
+  o.plots_dir = plots_dir;
+  r.daemon = app::run_daemon(daemon_config(s, scene), o);
   r.plant = plant.progress();
   r.plant_t = r.plant.t;
   r.speed = plant.forward_speed(2.0);

@@ -584,6 +584,11 @@ bool FaultObserver::make_interval(const Feedback& fb, const CommandHistory& cmds
   if (t1 == 0 || s.sample_ns == 0 || t1 <= s.sample_ns) return false;
   iv.nominal = false;
   iv.dt = static_cast<double>(t1 - s.sample_ns) * 1e-9;
+  // An interval longer than the bridged gaps (the host stalled: no SYNC, so no sample, for tens of
+  // periods) is not integrated: the trapezoids on β and deflection over it are off by a motion the
+  // samples never saw (a 0.1 s host stall left |r| ≈ 0.12 N·m, four times the threshold, decaying
+  // with 1/K_O). Nothing is checked across it; the next interval is.
+  if (iv.dt > (kMaxGap + 1.5) * p_.period) return false;
   iv.pieces = 1;
   iv.cmd[0] = cmds.find(s.applied_seq);
   iv.start[0] = 0.0;

@@ -165,7 +165,9 @@ void read_telemetry(const Reader& r, DaemonConfig& c) {
 //                    measured a 99 ms wake-up of the SCHED_FIFO loop on a shared 2-core machine),
 //                    far below a walking robot's time to harm itself (its modules hold their PD);
 //   module silent  = a bus: 0.2 s of missing replies in a row, by time (a late reply is
-//                    a missing one); the in-process plant: 3 (it never drops a reply).
+//                    a missing one), and at least 3 requests unanswered (one request left
+//                    unanswered across a host stall is the host's silence); the in-process
+//                    plant: 3 (it never drops a reply).
 void derive_timeouts(const Reader& r, DaemonConfig& c) {
   runtime::RuntimeConfig& rc = c.runtime;
   const double period = 1.0 / rc.rt.rate_hz;
@@ -206,8 +208,8 @@ void derive_timeouts(const Reader& r, DaemonConfig& c) {
   c.observer_missing_cycles = 3;
   c.observer_missing_time = d.kind == DriverKind::kSim ? 0.0 : 0.2;
   if (c.observer_missing_time > 0)
-    std::snprintf(buf, sizeof buf, ", module silent after %g s of missing replies",
-                  c.observer_missing_time);
+    std::snprintf(buf, sizeof buf, ", module silent after %g s of missing replies (at least %d)",
+                  c.observer_missing_time, c.observer_missing_cycles);
   else
     std::snprintf(buf, sizeof buf, ", module silent after %d missing replies", c.observer_missing_cycles);
   note += buf;

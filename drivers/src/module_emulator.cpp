@@ -140,10 +140,13 @@ void ModuleBank::on_reply_sent(std::int64_t t_ns) noexcept {
 void ModuleBank::on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept {
   ++syncs_;
   stats_.syncs.fetch_add(1, std::memory_order_relaxed);
+  if (last_sync_ns_ >= 0 && t_ns > last_sync_ns_ && t_ns - last_sync_ns_ < 100'000'000)
+    sync_interval_ns_ = t_ns - last_sync_ns_;
   keep_longest(stats_.sync_gap_max_ns, last_sync_ns_, t_ns);
   start_clock(t_ns);
   // 1. Integrate up to the SYNC with the commands applied so far.
   plant_.advance_to(t_ns);
+  last_advance_ns_ = t_ns;
   // 2. Command lifetime: a module without a valid command for command_timeout turns its output
   //    off now (and says so: "no command").
   bool changed = false;
@@ -186,13 +189,45 @@ void ModuleBank::on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept {
   }
 }
 
+void ModuleBank::keep_up(std::int64_t now_ns) noexcept {
+  if (!clock_started_ || last_sync_ns_ < 0 || sync_interval_ns_ <= 0) return;
+  if (now_ns - last_sync_ns_ > cfg_.command_timeout_ns) return;  // the host is away: the plant waits
+  if (now_ns - last_advance_ns_ < 2 * sync_interval_ns_) return;
+  bool any_on = false;  // after a safe stop (every output off) the plant waits for the host
+  for (int j = 0; j < cfg_.joints; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    any_on = any_on || (have_cmd_[ju] && !off_[ju]);
+  }
+  if (!any_on) return;
+  plant_.advance_to(now_ns);
+  last_advance_ns_ = now_ns;
+  stats_.keep_ups.fetch_add(1, std::memory_order_relaxed);
+}
+
+void ModuleBank::on_turn(std::int64_t now_ns) noexcept {
+  constexpr std::int64_t kSelfStallNs = 20'000'000;
+  if (last_turn_ns_ >= 0 && clock_started_ && now_ns - last_turn_ns_ > kSelfStallNs) {
+    const std::int64_t held = now_ns - std::max(last_turn_ns_, last_advance_ns_);
+    if (held > 0) {
+      plant_.hold(held);
+      last_advance_ns_ += held;
+    }
+    stats_.self_stalls.fetch_add(1, std::memory_order_relaxed);
+    stats_.self_stall_ns.fetch_add(now_ns - last_turn_ns_, std::memory_order_relaxed);
+  }
+  last_turn_ns_ = now_ns;
+}
+
 void ModuleBank::latch(int j, double tau, double beta_ref, double beta_dot_ref, bool has_gains,
                        double kp, double kd, bool torque_off, std::uint8_t tag,
                        std::int64_t t_ns) noexcept {
   if (j < 0 || j >= cfg_.joints) return;
   const auto ju = static_cast<std::size_t>(j);
   // Up to the arrival the previous command acts; from it on this one.
-  if (clock_started_) plant_.advance_to(t_ns);
+  if (clock_started_) {
+    plant_.advance_to(t_ns);
+    last_advance_ns_ = t_ns;
+  }
   start_clock(t_ns);
   latched_.tau[ju] = tau;
   latched_.beta_ref[ju] = beta_ref;
@@ -236,6 +271,7 @@ void CanModuleEmulator::run(const std::atomic<bool>& stop) {
     std::int64_t now = detail::monotonic_ns();
     const std::int64_t due = head_ != tail_ ? queue_[head_].due_ns : 0;
     const short ev = wait_input(fd_, now, due, blocked_ && head_ != tail_);
+    bank_.on_turn(detail::monotonic_ns());
     bool got = false;
     for (;;) {
       canfd_frame f{};
@@ -248,6 +284,8 @@ void CanModuleEmulator::run(const std::atomic<bool>& stop) {
     if (!got && (ev & (POLLHUP | POLLERR))) sleep_ns(kPollSliceNs);  // peer gone: don't spin
     now = detail::monotonic_ns();
     flush(now);
+    bank_.keep_up(now);
+    bank_.end_turn(detail::monotonic_ns());
   }
 }
 
@@ -412,6 +450,7 @@ void SerialModuleEmulator::run(const std::atomic<bool>& stop) {
     std::int64_t now = detail::monotonic_ns();
     const std::int64_t due = head_ != tail_ ? queue_[head_].due_ns : 0;
     const short ev = wait_input(fd_, now, due, blocked_ && head_ != tail_);
+    bank_.on_turn(detail::monotonic_ns());
     bool got = false;
     for (;;) {
       if (rx_len_ == rx_.size()) rx_len_ = 0;  // overrun: drop everything (a resync follows)
@@ -425,6 +464,8 @@ void SerialModuleEmulator::run(const std::atomic<bool>& stop) {
     if (!got && (ev & (POLLHUP | POLLERR))) sleep_ns(kPollSliceNs);  // no peer yet / any more
     now = detail::monotonic_ns();
     flush(now);
+    bank_.keep_up(now);
+    bank_.end_turn(detail::monotonic_ns());
   }
 }
 

@@ -43,7 +43,14 @@ class FirstOrderPlant final : public drivers::ModulePlant {
     }
   }
 
+  void hold(std::int64_t ns) override {
+    if (t_ns_ != 0) t_ns_ += ns;  // time passes, nothing integrated
+    held_ns_ += ns;
+  }
+
   const drivers::Command& last_command() const { return cmd_; }
+  std::int64_t plant_ns() const { return t_ns_; }  // host time the plant has reached [ns]
+  std::int64_t held_ns() const { return held_ns_; }
   const drivers::Feedback& last_measured() const { return last_measured_; }
   std::uint64_t applies() const { return applies_; }
 
@@ -63,7 +70,7 @@ class FirstOrderPlant final : public drivers::ModulePlant {
   drivers::Command cmd_{};
   drivers::Feedback last_measured_{};
   std::array<double, drivers::kMaxJoints> beta_{};
-  std::int64_t t_ns_ = 0;
+  std::int64_t t_ns_ = 0, held_ns_ = 0;
   std::uint64_t applies_ = 0;
 };
 

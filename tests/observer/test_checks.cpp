@@ -91,6 +91,57 @@ TEST(Checks, MissingForSeveralCyclesIsASilentModuleNotOne) {
   EXPECT_EQ(o.faults()[0].joint, 1);
 }
 
+// Over a bus the silent window is a time (0.2 s) and a count (3 requests). One request left
+// unanswered across a host stall (the loop held 206 ms inside its read: the soak hour ended so)
+// is the host's silence; two more unanswered after it make a silent module, as do 0.2 s of them.
+bool silent_latched(const pw::observer::FaultObserver& o, int joint) {
+  for (int i = 0; i < o.fault_count(); ++i)
+    if (o.faults()[i].fault == FaultClass::kModuleSilent && o.faults()[i].joint == joint) return true;
+  return false;
+}
+
+TEST(Checks, OneRequestUnansweredAcrossAHostStallIsNotASilentModule) {
+  auto p = params();
+  p.period = 2e-3;
+  p.missing_time = 0.2;
+  p.missing_cycles = 3;
+  pw::observer::FaultObserver o(p);
+  pw::drivers::Feedback fb{};
+  pw::drivers::Command cmd{};
+  double t = 0;
+  auto step = [&](std::uint64_t k, double dt, bool missing) {
+    t += dt;
+    frame(fb, k, p.period);
+    if (missing) fb.status[2] |= pw::drivers::kStatusMissing;
+    o.observe(fb, cmd, t, dt);
+  };
+  std::uint64_t k = 0;
+  for (; k < 50; ++k) step(k, p.period, false);
+  step(k++, 0.206, true);  // the stall: one cycle, 206 ms, its reply missing
+  EXPECT_FALSE(silent_latched(o, 2)) << "a host stall named module 2 silent";
+  for (int i = 0; i < 50; ++i) step(k++, p.period, false);
+  // The stall again, and this time the module stays silent: the third unanswered request names it.
+  step(k++, 0.206, true);
+  step(k++, p.period, true);
+  EXPECT_FALSE(silent_latched(o, 2)) << "two unanswered requests are not yet 3";
+  step(k++, p.period, true);
+  EXPECT_TRUE(silent_latched(o, 2));
+  // A module gone on a running loop: 0.2 s of unanswered requests (100 at 500 Hz), not fewer.
+  pw::observer::FaultObserver o2(p);
+  t = 0;
+  auto step2 = [&](std::uint64_t kk, bool missing) {
+    t += p.period;
+    frame(fb, kk, p.period);
+    if (missing) fb.status[4] |= pw::drivers::kStatusMissing;
+    o2.observe(fb, cmd, t, p.period);
+  };
+  for (k = 0; k < 50; ++k) step2(k, false);
+  int n = 0;
+  for (; n < 200 && !silent_latched(o2, 4); ++n) step2(k++, true);
+  EXPECT_GE(n, 99) << "silent after " << n << " missing replies (< 0.2 s)";
+  EXPECT_LE(n, 101) << "silent after " << n << " missing replies (> 0.2 s)";
+}
+
 // Over a bus (module timing records) a few per cent of lost samples must not blind the encoder
 // consistency check: an offset jump whose first sample comes right after a lost one is an
 // encoder_jump on its joint, and the same lossy, jittered stream without the jump raises nothing.

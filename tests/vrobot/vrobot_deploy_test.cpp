@@ -78,7 +78,9 @@ int listed(const WalkResult& r) {
 void print(const char* what, const WalkResult& r, double v_sim) {
   std::printf("[deploy] %s: %s\n  speed %.4f cm/s (in-process plant %.4f cm/s, %+.2f %%), plant "
               "%.2f s, cycles %llu, overruns %llu, host missing %llu, late %llu (used %llu); %s\n"
-              "  link: modules' longest SYNC gap %.1f ms, host's longest silence %.1f ms\n",
+              "  link: modules' longest SYNC gap %.1f ms, host's longest silence %.1f ms; loop's "
+              "longest stall %u periods; modules' thread held ≥ 20 ms %llu time(s), %.1f ms in "
+              "all; plant kept at wall time %llu time(s)\n",
               what, r.daemon.exit_line.c_str(), 100 * r.speed, 100 * v_sim,
               100 * (r.speed - v_sim) / v_sim, r.plant_t,
               static_cast<unsigned long long>(r.daemon.run.cycles),
@@ -87,7 +89,10 @@ void print(const char* what, const WalkResult& r, double v_sim) {
               static_cast<unsigned long long>(r.counters.late),
               static_cast<unsigned long long>(r.counters.late_used), r.robot_thread.c_str(),
               1e-6 * static_cast<double>(r.emu.sync_gap_max_ns),
-              1e-6 * static_cast<double>(r.counters.rx_silence_max_ns));
+              1e-6 * static_cast<double>(r.counters.rx_silence_max_ns), r.daemon.run.max_skipped,
+              static_cast<unsigned long long>(r.emu.self_stalls),
+              1e-6 * static_cast<double>(r.emu.self_stall_ns),
+              static_cast<unsigned long long>(r.emu.keep_ups));
   std::fflush(stdout);
 }
 
@@ -98,32 +103,37 @@ void say_if_not_realtime(const WalkResult& r) {
                 r.robot_thread.c_str(), r.daemon.run.rt.describe().c_str());
 }
 
-// A run in which the machine stopped the loop itself for as long as the time-based checks allow
-// (one stall of ≥ 0.2 s, the bus's "module silent" time) ends, correctly, in a safe stop on
-// silent modules / stale data. So does a run in which the kernel's tty layer held the bytes that
-// long while both ends ran: the host's loop ran and handed every SYNC to the kernel, yet the
-// modules received no SYNC for ≥ 0.2 s — or the modules kept writing replies and the host
-// received nothing for ≥ 0.2 s (seen on the shared CI machine under the CPU load: 0.2 s without a
-// byte while the loop's longest stall was 0.1 s; on this VM a pty read has held the SCHED_FIFO
-// loop for 0.27 s). Both are verdicts on the machine, not on the runtime: such a run is VOID —
-// said loudly, counted in the table, and run again, at most kAttempts in all; a machine that
-// keeps stalling fails the test.
+// A run in which the kernel's tty layer (or the machine, holding the modules' thread) kept the
+// bytes from one end for as long as the bus's "module silent" time (0.2 s) while the other ran
+// ends, correctly, in a safe stop on silent modules: the host's loop ran and handed every SYNC to
+// the kernel, yet the modules received no SYNC for ≥ 0.2 s — or the modules kept writing replies
+// and the host received nothing for ≥ 0.2 s (seen on the shared CI machine under the CPU load:
+// 0.2 s without a byte while the loop's longest stall was 0.1 s). That is a verdict on the
+// machine, not on the runtime: such a run is VOID — said loudly, counted in the table, and run
+// again, at most kAttempts in all; a machine that keeps stalling fails the test.
+// A stall of the host's loop alone is NOT void any more: the runtime must ride through it (one
+// request left unanswered across it is not a silent module; the interval is not integrated; the
+// virtual robot keeps its world at wall time, or holds it when the machine held its own thread
+// too). It is printed with the run.
 constexpr double kMachineStall = 0.2;  // [s]
 constexpr int kAttempts = 3;
 
 struct Stall {
   double loop = 0, link = 0;  // [s]
-  double worst() const { return std::max(loop, link); }
+  double worst() const { return link; }  // what makes a run void (loop: printed only)
 };
 
 Stall stall_of(const WalkResult& r, double rate_hz) {
   Stall st;
   st.loop = static_cast<double>(r.daemon.run.max_skipped) / rate_hz;
   if (r.counters.tx_dropped == 0) {  // every SYNC went to the kernel
-    const double syncs_held = 1e-9 * static_cast<double>(r.emu.sync_gap_max_ns);
+    // What the link (or the machine, holding the modules' thread) held beyond the loop's own
+    // longest stall: a loop held 0.2 s sends no SYNC and reads no reply for 0.2 s itself.
+    const double syncs_held = 1e-9 * static_cast<double>(r.emu.sync_gap_max_ns) - st.loop;
     const bool robot_wrote = 1e-9 * static_cast<double>(r.emu.reply_gap_max_ns) < kMachineStall;
-    const double replies_held = robot_wrote ? 1e-9 * static_cast<double>(r.counters.rx_silence_max_ns) : 0;
-    st.link = std::max(syncs_held, replies_held);
+    const double replies_held =
+        robot_wrote ? 1e-9 * static_cast<double>(r.counters.rx_silence_max_ns) - st.loop : 0;
+    st.link = std::max({0.0, syncs_held, replies_held});
   }
   return st;
 }
@@ -136,12 +146,12 @@ WalkResult walk_unless_machine_stalled(const char* what, double rate_hz, int& vo
     const Stall st = stall_of(r, rate_hz);
     if (st.worst() < kMachineStall) break;
     ++void_runs;
-    std::printf("######## VOID RUN (%s, attempt %d of %d): the machine stopped the real-time loop "
-                "for %.0f ms at once (%u periods) / held the link's bytes for %.0f ms (modules' "
-                "longest SYNC gap %.0f ms, host's longest silence %.0f ms, modules' longest reply "
-                "gap %.0f ms), beyond the %.0f ms the bus checks allow; the runtime's verdict was: "
-                "%s ########\n",
-                what, attempt, kAttempts, 1e3 * st.loop, r.daemon.run.max_skipped, 1e3 * st.link,
+    std::printf("######## VOID RUN (%s, attempt %d of %d): the link (or the machine, holding the "
+                "modules' thread) held the bytes for %.0f ms beyond the loop's own longest stall "
+                "(%.0f ms, %u periods) (modules' longest SYNC gap %.0f ms, host's longest silence "
+                "%.0f ms, modules' longest reply gap %.0f ms), beyond the %.0f ms the bus checks "
+                "allow; the runtime's verdict was: %s ########\n",
+                what, attempt, kAttempts, 1e3 * st.link, 1e3 * st.loop, r.daemon.run.max_skipped,
                 1e-6 * static_cast<double>(r.emu.sync_gap_max_ns),
                 1e-6 * static_cast<double>(r.counters.rx_silence_max_ns),
                 1e-6 * static_cast<double>(r.emu.reply_gap_max_ns), 1e3 * kMachineStall,

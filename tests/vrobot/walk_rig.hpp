@@ -154,6 +154,8 @@ struct EmulatorCounts {
                 commands = 0, torque_off_cmds = 0, lifetime_expired = 0, rx_errors = 0,
                 first_off_sync = 0;
   std::int64_t sync_gap_max_ns = 0, reply_gap_max_ns = 0;
+  std::uint64_t keep_ups = 0, self_stalls = 0;  // plant kept at wall time / held with its thread
+  std::int64_t self_stall_ns = 0;
 };
 
 struct WalkResult {
@@ -214,7 +216,8 @@ inline WalkResult run_walk(const config::DaemonConfig& cfg, vrobot::VirtualRobot
   r.emu = {st.syncs.load(), st.replies_sent.load(), st.replies_dropped.load(),
            st.replies_corrupted.load(), st.commands.load(), st.torque_off_cmds.load(),
            st.lifetime_expired.load(), st.rx_errors.load(), st.first_off_sync.load(),
-           st.sync_gap_max_ns.load(), st.reply_gap_max_ns.load()};
+           st.sync_gap_max_ns.load(), st.reply_gap_max_ns.load(), st.keep_ups.load(),
+           st.self_stalls.load(), st.self_stall_ns.load()};
   r.plant = robot.plant().progress();
   r.plant_t = r.plant.t;
   r.speed = robot.plant().forward_speed(2.0);

@@ -227,7 +227,9 @@ bool FaultObserver::check_joint(const Feedback& fb, int j, double t, double dt) 
   if (st & drivers::kStatusMissing) {
     ++s.missing_run;
     s.missing_s += dt;
-    if (p_.missing_time > 0 ? s.missing_s >= p_.missing_time : s.missing_run >= p_.missing_cycles)
+    // With a time window, the count must be reached too: one unanswered request that spans a host
+    // stall (the loop held ≥ 0.2 s inside its read) is the host's silence, not the module's.
+    if (s.missing_run >= p_.missing_cycles && (p_.missing_time <= 0 || s.missing_s >= p_.missing_time))
       latch(FaultClass::kModuleSilent, j, t, p_.missing_time > 0 ? s.missing_s : s.missing_run,
             p_.missing_time > 0 ? p_.missing_time : p_.missing_cycles, 0.0);
     return false;

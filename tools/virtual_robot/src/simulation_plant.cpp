@@ -170,6 +170,13 @@ void SimulationPlant::advance_to(std::int64_t t_ns) {
   record();
 }
 
+void SimulationPlant::hold(std::int64_t ns) {
+  if (!started_ || ns <= 0) return;
+  origin_ns_ += ns;
+  gaps_.fetch_add(1, kRelaxed);
+  gap_time_.store(gap_time_.load(kRelaxed) + 1e-9 * static_cast<double>(ns), kRelaxed);
+}
+
 PlantProgress SimulationPlant::progress() const {
   PlantProgress p;
   p.t = t_.load(kRelaxed);

@@ -96,7 +96,13 @@ std::string VirtualRobot::report() {
     << "), malformed/CRC-failed frames received " << s.rx_errors.load() << "\n";
   o << "  longest gap between SYNCs received " << 1e-6 * static_cast<double>(s.sync_gap_max_ns.load())
     << " ms, between replies sent " << 1e-6 * static_cast<double>(s.reply_gap_max_ns.load())
-    << " ms\n";
+    << " ms";
+  if (s.keep_ups.load() > 0)
+    o << "; the plant kept at wall time " << s.keep_ups.load() << " time(s) while a SYNC was overdue";
+  if (s.self_stalls.load() > 0)
+    o << "; the machine held the modules' thread " << s.self_stalls.load() << " time(s) ≥ 20 ms, "
+      << 1e-6 * static_cast<double>(s.self_stall_ns.load()) << " ms in all (the plant held too)";
+  o << "\n";
   o << "  faults injected: replies dropped " << s.replies_dropped.load() << ", corrupted "
     << s.replies_corrupted.load() << ", command lifetime expired " << s.lifetime_expired.load();
   o << " (latency " << static_cast<double>(f.reply_latency_ns) * 1e-6 << " ms, loss " << f.frame_loss
@@ -112,7 +118,7 @@ std::string VirtualRobot::report() {
                 static_cast<unsigned long long>(p.steps), p.com_x,
                 p.all_off ? "outputs off" : "outputs on", p.failed ? ", PLANT FAILED" : "");
   o << line;
-  if (p.gaps_skipped > 0) o << ", " << p.gaps_skipped << " idle gap(s) of " << p.gap_time_skipped << " s not integrated";
+  if (p.gaps_skipped > 0) o << ", " << p.gaps_skipped << " idle or held gap(s) of " << p.gap_time_skipped << " s not integrated";
   o << "\n";
   // The scene's faults: each applied one and whether (when) it acted; the skipped ones.
   const std::vector<model::FaultSpec>& applied = plant_->faults();

@@ -55,6 +55,9 @@ class ModulePlant {
   virtual void measure(Feedback& out) = 0;
   // Integrate the plant up to absolute time t_ns (CLOCK_MONOTONIC) [ns].
   virtual void advance_to(std::int64_t t_ns) = 0;
+  // The modules' own thread was held for ns (the machine paused it): time stood still for the
+  // plant as well, so the next advance does not integrate that span. Default: integrate it.
+  virtual void hold(std::int64_t /*ns*/) {}
   // false while module j does not answer (a plant-side fault, e.g. a scene's module_silent); the
   // emulator then sends nothing for it, as for its own FaultConfig::module[j].silent.
   virtual bool answering(int /*j*/) const { return true; }
@@ -115,6 +118,9 @@ struct EmulatorStats {
   std::atomic<std::uint64_t> torque_off_cmds{0}; // of which torque-off [-]
   std::atomic<std::uint64_t> lifetime_expired{0};// module dropped to torque-off (timeout) [-]
   std::atomic<std::uint64_t> rx_errors{0};       // malformed / CRC-failed frames received [-]
+  std::atomic<std::uint64_t> keep_ups{0};        // plant advances between overdue SYNCs [-]
+  std::atomic<std::uint64_t> self_stalls{0};     // this thread held ≥ 20 ms by the machine [-]
+  std::atomic<std::int64_t> self_stall_ns{0};    // their total [ns]
   std::atomic<std::uint64_t> first_off_sync{0};  // SYNCs handled when the first torque-off command
                                                  // reached a module that was on (0: none) [-]
   // The longest interval between two SYNC arrivals, and between two replies handed to the
@@ -136,6 +142,21 @@ class ModuleBank {
   void latch(int j, double tau, double beta_ref, double beta_dot_ref, bool has_gains, double kp,
              double kd, bool torque_off, std::uint8_t tag, std::int64_t t_ns) noexcept;
   void latch_gains(int j, double kp, double kd) noexcept;
+  // Between SYNCs (the front ends call it every loop turn, ≤ 1 ms apart): the world does not
+  // wait for a stalled host. Once the SYNC is overdue (2 of its intervals since the plant last
+  // moved) and while the modules still hold a command (within its lifetime of the last SYNC, and
+  // not every output off: after a safe stop the plant waits for the host as before), the
+  // plant is kept at wall time, so the next SYNC samples at once. Integrated lazily at that SYNC,
+  // a 0.23 s host stall was answered ~6 ms late: three cycles of replies missed after it.
+  void keep_up(std::int64_t now_ns) noexcept;
+  // At the top of every loop turn (before input is handled): a turn that comes more than 20 ms
+  // after the previous one ended (turns wait ≤ 1 ms) means the machine held this thread; the
+  // plant is told to hold() that span rather than integrate it on the next SYNC. A real robot's
+  // world does not pause, but a simulated one paused with its machine: integrating the span
+  // afterwards (0.2 s of plant ≈ 5 ms of work) answered the following SYNCs late, three cycles
+  // of replies missed and a module named silent after a whole-machine stall.
+  void on_turn(std::int64_t now_ns) noexcept;
+  void end_turn(std::int64_t now_ns) noexcept { last_turn_ns_ = now_ns; }
   // After on_sync: the sample, the counter module j echoes and its timing record.
   const Feedback& sample() const { return sample_; }
   std::uint8_t echo(int j) const { return echo_[static_cast<std::size_t>(j)]; }
@@ -167,6 +188,9 @@ class ModuleBank {
   std::mt19937 rng_;
   std::uint64_t syncs_ = 0;
   std::int64_t last_sync_ns_ = -1, last_reply_ns_ = -1;
+  std::int64_t sync_interval_ns_ = 0;   // the last SYNC interval under 100 ms [ns]
+  std::int64_t last_advance_ns_ = -1;   // host time the plant was last advanced to [ns]
+  std::int64_t last_turn_ns_ = -1;      // end of the front end's previous loop turn [ns]
   Feedback sample_{};
   Command latched_{};                      // latest command per joint (applied at SYNC)
   std::array<std::int64_t, kMaxJoints> last_cmd_ns_{};

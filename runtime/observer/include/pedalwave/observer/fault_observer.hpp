@@ -92,8 +92,10 @@ struct ObserverParams {
   double beta_dot_max = 60.0;   // |β̇| plausible range [rad/s]
   double deflection_max = 1.0;  // |deflection| plausible range (spring travel) [rad]
   int missing_cycles = 3;       // consecutive kStatusMissing (or frozen frames) → silent [-]
-  double missing_time = 0.0;    // > 0: missing replies in a row for this long → silent [s] (a bus:
-                                // periods skipped after an overrun count by their time); 0: cycles
+  double missing_time = 0.0;    // > 0: missing replies in a row for this long, and at least
+                                // missing_cycles of them → silent [s] (a bus: periods skipped
+                                // after an overrun count by their time, but one request left
+                                // unanswered across a host stall is not a silent module); 0: cycles
   int stale_count = 3;          // stale/out-of-order/repeated cycles within stale_window → fault [-]
   int stale_window = 50;        // [cycles]
   int hold_cycles = 60;         // bit-identical β samples → encoder stuck [-]

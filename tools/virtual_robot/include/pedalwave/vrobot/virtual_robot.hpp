@@ -84,6 +84,9 @@ class SimulationPlant final : public drivers::ModulePlant {
   void apply(const drivers::Command& cmd) override;
   void measure(drivers::Feedback& out) override;
   void advance_to(std::int64_t t_ns) override;
+  // The modules' thread was held for ns: the time origin moves by ns (not integrated; counted
+  // with the idle gaps in progress()).
+  void hold(std::int64_t ns) override;
   bool answering(int j) const override;
 
   // The scene faults applied inside the modules (empty when !opt.apply_scene_faults) and those

@@ -1,0 +1,86 @@
+// The module bank's time keeping between SYNCs, without a transport: a host whose SYNC is
+// overdue does not stop the emulated world (keep_up), a machine that holds the modules' own
+// thread holds the simulated world with it (on_turn → ModulePlant::hold).
+#include <gtest/gtest.h>
+
+#include <cstdint>
+
+#include "pedalwave/drivers/module_emulator.hpp"
+#include "test_plant.hpp"
+
+namespace pd = pedalwave::drivers;
+using pedalwave::test::FirstOrderPlant;
+
+namespace {
+
+constexpr std::int64_t kMs = 1'000'000;
+constexpr std::int64_t kT0 = 1'000 * kMs;
+
+pd::EmulatorConfig config() {
+  pd::EmulatorConfig ec;
+  ec.joints = 2;
+  ec.command_timeout_ns = 500 * kMs;
+  return ec;
+}
+
+// SYNCs every 2 ms from kT0 to kT0 + 10 ms, a live command latched after each.
+void walk(pd::ModuleBank& bank, bool torque_off = false) {
+  for (int k = 0; k <= 5; ++k) {
+    const std::int64_t t = kT0 + 2 * kMs * k;
+    bank.on_sync(static_cast<std::uint8_t>(k + 1), t);
+    for (int j = 0; j < 2; ++j)
+      bank.latch(j, 0.1, 0.0, 0.0, true, 1.0, 0.01, torque_off, static_cast<std::uint8_t>(k + 1),
+                 t + kMs / 10);
+  }
+}
+
+TEST(ModuleBank, KeepsThePlantAtWallTimeWhileTheHostsSyncIsOverdue) {
+  FirstOrderPlant plant;
+  pd::ModuleBank bank(config(), plant);
+  walk(bank);
+  const std::int64_t last = kT0 + 10 * kMs + kMs / 10;  // the last latch
+  ASSERT_EQ(plant.plant_ns(), last);
+  bank.keep_up(last + 3 * kMs);  // within 2 SYNC intervals: the host is on time
+  EXPECT_EQ(plant.plant_ns(), last);
+  // The host stalls: the front end turns every ~1 ms; the plant never lags wall time by more
+  // than two SYNC intervals.
+  for (std::int64_t t = last + kMs; t <= last + 300 * kMs; t += kMs) {
+    bank.keep_up(t);
+    EXPECT_GE(plant.plant_ns(), t - 4 * kMs) << "ns behind at " << t - last;
+  }
+  EXPECT_GT(bank.stats().keep_ups.load(), 50u);
+  // Past the command lifetime of the last SYNC the host is away, not late: the plant waits.
+  const std::int64_t reached = plant.plant_ns();
+  bank.keep_up(kT0 + 10 * kMs + 501 * kMs);
+  EXPECT_EQ(plant.plant_ns(), reached);
+}
+
+TEST(ModuleBank, AfterASafeStopThePlantWaitsForTheHost) {
+  FirstOrderPlant plant;
+  pd::ModuleBank bank(config(), plant);
+  walk(bank, /*torque_off=*/true);
+  const std::int64_t reached = plant.plant_ns();
+  for (std::int64_t t = reached + kMs; t <= reached + 100 * kMs; t += kMs) bank.keep_up(t);
+  EXPECT_EQ(plant.plant_ns(), reached);
+  EXPECT_EQ(bank.stats().keep_ups.load(), 0u);
+}
+
+TEST(ModuleBank, ATurnHeldByTheMachineHoldsThePlantRatherThanIntegratingIt) {
+  FirstOrderPlant plant;
+  pd::ModuleBank bank(config(), plant);
+  walk(bank);
+  std::int64_t t = kT0 + 11 * kMs;
+  bank.end_turn(t);
+  bank.on_turn(t + kMs);  // a normal turn (≤ 1 ms poll)
+  bank.end_turn(t + kMs);
+  EXPECT_EQ(plant.held_ns(), 0);
+  bank.on_turn(t + 231 * kMs);  // the machine held the thread 230 ms
+  EXPECT_EQ(plant.held_ns(), 230 * kMs);
+  EXPECT_EQ(bank.stats().self_stalls.load(), 1u);
+  // The next SYNC integrates only what came after the hold.
+  bank.end_turn(t + 231 * kMs);
+  bank.on_sync(7, t + 232 * kMs);
+  EXPECT_EQ(plant.plant_ns(), t + 232 * kMs);
+}
+
+}  // namespace

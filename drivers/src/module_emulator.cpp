@@ -142,6 +142,13 @@ void ModuleBank::on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept {
   stats_.syncs.fetch_add(1, std::memory_order_relaxed);
   if (last_sync_ns_ >= 0 && t_ns > last_sync_ns_ && t_ns - last_sync_ns_ < 100'000'000)
     sync_interval_ns_ = t_ns - last_sync_ns_;
+  if (last_sync_ns_ >= 0 && t_ns > last_sync_ns_) {
+    recent_sync_ns_[recent_sync_next_] = t_ns - last_sync_ns_;
+    recent_sync_next_ = (recent_sync_next_ + 1) % recent_sync_ns_.size();
+    usual_sync_ns_ = 0;
+    for (std::int64_t v : recent_sync_ns_)
+      if (v > 0 && (usual_sync_ns_ == 0 || v < usual_sync_ns_)) usual_sync_ns_ = v;
+  }
   keep_longest(stats_.sync_gap_max_ns, last_sync_ns_, t_ns);
   start_clock(t_ns);
   // 1. Integrate up to the SYNC with the commands applied so far.
@@ -206,11 +213,15 @@ void ModuleBank::keep_up(std::int64_t now_ns) noexcept {
 
 void ModuleBank::on_turn(std::int64_t now_ns) noexcept {
   constexpr std::int64_t kSelfStallNs = 20'000'000;
+  constexpr std::int64_t kHoldIntervals = 10;
   if (last_turn_ns_ >= 0 && clock_started_ && now_ns - last_turn_ns_ > kSelfStallNs) {
     const std::int64_t held = now_ns - std::max(last_turn_ns_, last_advance_ns_);
-    if (held > 0) {
+    // Only a span no host integrates across is held (see the header); a shorter one is
+    // integrated at the next SYNC or keep_up, as a real robot's world would have moved.
+    if (held > 0 && (usual_sync_ns_ <= 0 || held > kHoldIntervals * usual_sync_ns_)) {
       plant_.hold(held);
       last_advance_ns_ += held;
+      stats_.self_stall_holds.fetch_add(1, std::memory_order_relaxed);
     }
     stats_.self_stalls.fetch_add(1, std::memory_order_relaxed);
     stats_.self_stall_ns.fetch_add(now_ns - last_turn_ns_, std::memory_order_relaxed);

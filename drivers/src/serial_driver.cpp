@@ -318,7 +318,7 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
     out.late_applied_ns[ju] = 0;
     if (late_[ju].have_timing && clocks_[ju].started() && !late_[ju].timing.no_command) {
       const wire::ModuleTiming& lt = late_[ju].timing;
-      out.late_applied_ns[ju] = clocks_[ju].to_host(lt.sample_us - lt.applied_age_us);
+      out.late_applied_ns[ju] = applied_host_ns(lt, clocks_[ju]);
       out.late_applied_seq[ju] = seq_of_tag_[lt.applied_tag];
     }
     ModuleClock& clk = clocks_[ju];

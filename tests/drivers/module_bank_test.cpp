@@ -23,10 +23,10 @@ pd::EmulatorConfig config() {
   return ec;
 }
 
-// SYNCs every 2 ms from kT0 to kT0 + 10 ms, a live command latched after each.
-void walk(pd::ModuleBank& bank, bool torque_off = false) {
+// SYNCs every `interval` (2 ms) from kT0, six of them, a live command latched after each.
+void walk(pd::ModuleBank& bank, bool torque_off = false, std::int64_t interval = 2 * kMs) {
   for (int k = 0; k <= 5; ++k) {
-    const std::int64_t t = kT0 + 2 * kMs * k;
+    const std::int64_t t = kT0 + interval * k;
     bank.on_sync(static_cast<std::uint8_t>(k + 1), t);
     for (int j = 0; j < 2; ++j)
       bank.latch(j, 0.1, 0.0, 0.0, true, 1.0, 0.01, torque_off, static_cast<std::uint8_t>(k + 1),
@@ -77,10 +77,34 @@ TEST(ModuleBank, ATurnHeldByTheMachineHoldsThePlantRatherThanIntegratingIt) {
   bank.on_turn(t + 231 * kMs);  // the machine held the thread 230 ms
   EXPECT_EQ(plant.held_ns(), 230 * kMs);
   EXPECT_EQ(bank.stats().self_stalls.load(), 1u);
+  EXPECT_EQ(bank.stats().self_stall_holds.load(), 1u);
   // The next SYNC integrates only what came after the hold.
   bank.end_turn(t + 231 * kMs);
   bank.on_sync(7, t + 232 * kMs);
   EXPECT_EQ(plant.plant_ns(), t + 232 * kMs);
+}
+
+// At 100 Hz a 50 ms machine stall is 5 SYNC intervals: the host's observer integrates across
+// it, so the plant must have moved with the modules' clocks. Not held: integrated at the next SYNC.
+TEST(ModuleBank, AStallShorterThanTenSyncIntervalsIsIntegratedNotHeld) {
+  FirstOrderPlant plant;
+  pd::ModuleBank bank(config(), plant);
+  walk(bank, false, 10 * kMs);  // SYNCs at 100 Hz
+  const std::int64_t t = kT0 + 50 * kMs + kMs;
+  bank.end_turn(t);
+  bank.on_turn(t + 50 * kMs);  // the machine held the thread 50 ms
+  EXPECT_EQ(plant.held_ns(), 0);
+  EXPECT_EQ(bank.stats().self_stalls.load(), 1u);
+  EXPECT_EQ(bank.stats().self_stall_holds.load(), 0u);
+  bank.end_turn(t + 50 * kMs);
+  bank.on_sync(7, t + 51 * kMs);
+  EXPECT_EQ(plant.plant_ns(), t + 51 * kMs);
+  EXPECT_EQ(plant.held_ns(), 0) << "the plant moved over the whole span, as the modules' clocks did";
+  // 110 ms (11 intervals) is held.
+  bank.end_turn(t + 52 * kMs);
+  bank.on_turn(t + 162 * kMs);
+  EXPECT_EQ(plant.held_ns(), 110 * kMs);
+  EXPECT_EQ(bank.stats().self_stall_holds.load(), 1u);
 }
 
 }  // namespace

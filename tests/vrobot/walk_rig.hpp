@@ -23,6 +23,7 @@
 #include "pedalwave/config/daemon.hpp"
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/drivers/can_protocol.hpp"
+#include "pedalwave/drivers/late_sample.hpp"
 #include "pedalwave/drivers/module_clock.hpp"
 #include "pedalwave/drivers/serial_driver.hpp"
 #include "pedalwave/drivers/socketcan_driver.hpp"
@@ -272,15 +273,24 @@ class BusModelDriver final : public drivers::Driver {
     seq_of_tag_.fill(drivers::kNoCommandSeq);
   }
   int joints() const override { return bank_.joints(); }
+  // Late answers: each reply misses its read deadline with probability p (deterministic seed)
+  // and reaches the host one cycle later, as the previous SYNC's answer.
+  void late(double p) { late_ = p; }
   // A host stall: from read number `at_read` on, the bus time runs `ns` ahead of the loop's (the
   // modules got no SYNC, so took no sample, for that long; the plant went on under the held
-  // commands) — what a loop descheduled for ns looks like on the bus.
-  void stall(int at_read, std::int64_t ns) {
+  // commands) — what a loop descheduled for ns looks like on the bus. machine = true: the
+  // machine held the modules' thread as well (the virtual robot's plant holds, ModuleBank::on_turn).
+  void stall(int at_read, std::int64_t ns, bool machine = false) {
     stall_at_ = at_read;
     stall_ns_ = ns;
+    machine_stall_ = machine;
   }
   drivers::IoStatus read(std::int64_t now_ns, std::int64_t, drivers::Feedback& out) override {
-    if (++reads_ == stall_at_) offset_ns_ += stall_ns_;
+    if (++reads_ == stall_at_) {
+      if (machine_stall_) bank_.end_turn(now_ns + offset_ns_);  // the modules' last turn
+      offset_ns_ += stall_ns_;
+      if (machine_stall_) bank_.on_turn(now_ns + offset_ns_);   // their first after the stall
+    }
     now_ns += offset_ns_;
     now_ = now_ns;
     bank_.on_sync(++counter_, now_ns);
@@ -310,12 +320,40 @@ class BusModelDriver final : public drivers::Driver {
         out.sample_ns[k] = 0;
         continue;
       }
+      const drivers::wire::ModuleTiming& t = bank_.timing(j);
+      if (late_ > 0 && std::uniform_real_distribution<double>(0, 1)(rng_) < late_) {
+        // This SYNC's answer misses the deadline. The previous SYNC's late answer, if it came
+        // and is newer than the sample handed out last, is this cycle's (older) sample
+        // (PROTOCOL.md §4); else the joint is missing. This one becomes the pending late answer.
+        Pending& pend = pending_[k];
+        const Pending now{true, out.beta[k], out.beta_dot[k], out.deflection[k], out.status[k], t,
+                          seq_of_tag_[t.applied_tag]};
+        if (pend.valid) {
+          out.beta[k] = pend.beta, out.beta_dot[k] = pend.beta_dot, out.deflection[k] = pend.deflection;
+          out.status[k] = static_cast<std::uint16_t>(pend.status | drivers::kStatusLate);
+          out.sample_ns[k] = clocks_[k].to_host(pend.t.sample_us);
+          out.applied_ns[k] = drivers::applied_host_ns(pend.t, clocks_[k]);
+          out.applied_seq[k] = pend.t.no_command ? drivers::kNoCommandSeq : pend.applied_seq;
+          last_.beta[k] = out.beta[k], last_.beta_dot[k] = out.beta_dot[k];
+          last_.deflection[k] = out.deflection[k];
+          ++counters_.late_used;
+        } else {
+          out.beta[k] = last_.beta[k], out.beta_dot[k] = last_.beta_dot[k];
+          out.deflection[k] = last_.deflection[k];
+          out.status[k] = drivers::kStatusMissing | drivers::kStatusLate;
+          out.sample_ns[k] = 0;
+          ++counters_.missing;
+        }
+        ++counters_.late;
+        pend = now;
+        continue;
+      }
+      pending_[k].valid = false;
       last_.beta[k] = out.beta[k];
       last_.beta_dot[k] = out.beta_dot[k];
       last_.deflection[k] = out.deflection[k];
-      const drivers::wire::ModuleTiming& t = bank_.timing(j);
       out.sample_ns[k] = clocks_[k].update(t.sample_us, now_ns);
-      out.applied_ns[k] = clocks_[k].to_host(t.sample_us - t.applied_age_us);
+      out.applied_ns[k] = drivers::applied_host_ns(t, clocks_[k]);
       out.applied_seq[k] = t.no_command ? drivers::kNoCommandSeq : seq_of_tag_[t.applied_tag];
     }
     return drivers::IoStatus::kOk;
@@ -366,6 +404,15 @@ class BusModelDriver final : public drivers::Driver {
   std::int64_t delay_ns_;
   bool report_timing_;
   double loss_;
+  double late_ = 0.0;
+  struct Pending {
+    bool valid = false;
+    double beta = 0, beta_dot = 0, deflection = 0;
+    std::uint16_t status = 0;
+    drivers::wire::ModuleTiming t{};
+    std::uint64_t applied_seq = 0;
+  };
+  std::array<Pending, drivers::kMaxJoints> pending_{};
   std::mt19937 rng_{17};
   drivers::Feedback last_{};
   drivers::ModuleBank bank_;
@@ -376,28 +423,38 @@ class BusModelDriver final : public drivers::Driver {
   std::uint64_t seq_ = 0;
   std::int64_t now_ = 0;
   int reads_ = 0, stall_at_ = 0;
+  bool machine_stall_ = false;
   std::int64_t stall_ns_ = 0, offset_ns_ = 0;
 };
 
-// The runtime (lockstep loop clock) against the bus model: deterministic. delay: the command
-// transport delay as a fraction of the period (0: applied at the sample instant).
-// stall_at_cycle > 0: the host stalls there for stall_periods (BusModelDriver::stall);
-// plots_dir: the daemon's --plots (cycles.csv with the residuals).
-inline WalkResult walk_bus_model(WalkSetup s, const model::Scene& scene, double delay,
-                                 bool report_timing = true, double loss = 0.0,
-                                 int stall_at_cycle = 0, int stall_periods = 0,
-                                 const std::string& plots_dir = {}) {
+// What the bus model does besides the deterministic bus (walk_bus_model).
+struct BusModel {
+  double delay = 0.5;          // the command transport delay, a fraction of the period
+  bool report_timing = true;   // false: FeedbackTiming::kNominal (no timing records)
+  double loss = 0.0;           // share of replies lost
+  double late = 0.0;           // share of replies that miss the read deadline (BusModelDriver::late)
+  int stall_at_cycle = 0;      // > 0: a stall of stall_periods there (BusModelDriver::stall)
+  int stall_periods = 0;
+  bool machine_stall = false;  // the stall held the modules' thread too: the plant held
+  std::string plots_dir{};     // the daemon's --plots (cycles.csv with the residuals)
+};
+
+// The runtime (lockstep loop clock) against the bus model: deterministic.
+inline WalkResult walk_bus_model(WalkSetup s, const model::Scene& scene, const BusModel& m) {
   s.lockstep = true;
   if (s.transport == Transport::kSim) s.transport = Transport::kCanFd;
   vrobot::PlantOptions po;
   po.record_capacity = static_cast<std::size_t>(s.duration * 100 * 2) + 1000;
   vrobot::SimulationPlant plant(scene, po);
-  BusModelDriver drv(plant, std::llround(delay * 1e9 / s.rate_hz), 40.0, report_timing, loss);
-  if (stall_at_cycle > 0) drv.stall(stall_at_cycle, std::llround(stall_periods * 1e9 / s.rate_hz));
+  BusModelDriver drv(plant, std::llround(m.delay * 1e9 / s.rate_hz), 40.0, m.report_timing, m.loss);
+  if (m.stall_at_cycle > 0)
+    drv.stall(m.stall_at_cycle, std::llround(m.stall_periods * 1e9 / s.rate_hz), m.machine_stall);
+  drv.late(m.late);
   WalkResult r;
   app::DaemonOptions o = quiet(&drv);
-  o.plots_dir = plots_dir;
+  o.plots_dir = m.plots_dir;
   r.daemon = app::run_daemon(daemon_config(s, scene), o);
+  r.counters = drv.counters();
   r.plant = plant.progress();
   r.plant_t = r.plant.t;
   r.speed = plant.forward_speed(2.0);

@@ -597,6 +597,10 @@ bool FaultObserver::make_interval(const Feedback& fb, const CommandHistory& cmds
   if (iv.cmd[0] == nullptr) return false;
   const std::uint64_t a = fb.applied_seq[k];
   if (a == s.applied_seq) return true;
+  // A new command at an unknown time (its age saturated at 32.8 ms: at 100 Hz, an interval of
+  // four periods or more across a stall) is not integrated: placed at the saturated age, it
+  // left |r| ≈ 0.08–0.39 N·m after a 4–8-period stall (BusModel.AMachineStallAt100Hz…).
+  if (fb.applied_ns[k] == 0) return false;
   const double t_last = std::clamp(static_cast<double>(fb.applied_ns[k] - s.sample_ns) * 1e-9, 0.0, iv.dt);
   // The commands applied since: from the old one's successor to the reported one. "No command"
   // on either side is a single switch.

@@ -56,7 +56,8 @@ struct Feedback {
   std::array<std::int64_t, kMaxJoints> sample_ns{};
   // The command module j applied last before its sample: Command::seq (kNoCommandSeq = output
   // off, no command) [-], and when it applied it (same clock as sample_ns) [ns], (N-1). Between
-  // two samples the previous sample's applied command acts until applied_ns, this one after.
+  // two samples the previous sample's applied command acts until applied_ns, this one after;
+  // applied_ns = 0: when is unknown (the module's age field saturated, PROTOCOL.md §1.1).
   std::array<std::uint64_t, kMaxJoints> applied_seq{};
   std::array<std::int64_t, kMaxJoints> applied_ns{};
   // A late answer of module j that came this cycle (to an older SYNC: its data is not used): the

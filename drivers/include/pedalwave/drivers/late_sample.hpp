@@ -48,6 +48,13 @@ struct HandedOut {
   void take(std::uint32_t us) noexcept { sample_us = us, any = true; }
 };
 
+// When the module applied its last command, on the host clock [ns]; 0 = unknown: the age
+// saturated at kAgeMaxUs (applied 32.8 ms or more before the sample, e.g. across a stall of a
+// 100 Hz loop), so the command's switch time inside the interval is not known (Feedback).
+inline std::int64_t applied_host_ns(const wire::ModuleTiming& t, const ModuleClock& clk) noexcept {
+  return t.applied_age_us >= wire::kAgeMaxUs ? 0 : clk.to_host(t.sample_us - t.applied_age_us);
+}
+
 // Joint j's sample in `out` from its timing record t (fresh or late): the sample time through
 // the module clock (updated with `lower_ns`, no module sampled before it: the SYNC it answered),
 // the command it applied last (tag & tag_mask → Command::seq) and when. Notes the time handed out.
@@ -55,7 +62,7 @@ inline void hand_out(const wire::ModuleTiming& t, std::int64_t lower_ns,
                      const std::array<std::uint64_t, 256>& seq_of_tag, unsigned tag_mask,
                      ModuleClock& clk, HandedOut& handed, Feedback& out, std::size_t j) noexcept {
   out.sample_ns[j] = clk.update(t.sample_us, lower_ns);
-  out.applied_ns[j] = clk.to_host(t.sample_us - t.applied_age_us);
+  out.applied_ns[j] = applied_host_ns(t, clk);
   out.applied_seq[j] = t.no_command ? kNoCommandSeq : seq_of_tag[t.applied_tag & tag_mask];
   handed.take(t.sample_us);
 }

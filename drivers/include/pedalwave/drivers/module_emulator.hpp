@@ -121,6 +121,7 @@ struct EmulatorStats {
   std::atomic<std::uint64_t> keep_ups{0};        // plant advances between overdue SYNCs [-]
   std::atomic<std::uint64_t> self_stalls{0};     // this thread held ≥ 20 ms by the machine [-]
   std::atomic<std::int64_t> self_stall_ns{0};    // their total [ns]
+  std::atomic<std::uint64_t> self_stall_holds{0};// of which the plant held (> 10 SYNC intervals) [-]
   std::atomic<std::uint64_t> first_off_sync{0};  // SYNCs handled when the first torque-off command
                                                  // reached a module that was on (0: none) [-]
   // The longest interval between two SYNC arrivals, and between two replies handed to the
@@ -150,11 +151,16 @@ class ModuleBank {
   // a 0.23 s host stall was answered ~6 ms late: three cycles of replies missed after it.
   void keep_up(std::int64_t now_ns) noexcept;
   // At the top of every loop turn (before input is handled): a turn that comes more than 20 ms
-  // after the previous one ended (turns wait ≤ 1 ms) means the machine held this thread; the
-  // plant is told to hold() that span rather than integrate it on the next SYNC. A real robot's
-  // world does not pause, but a simulated one paused with its machine: integrating the span
-  // afterwards (0.2 s of plant ≈ 5 ms of work) answered the following SYNCs late, three cycles
-  // of replies missed and a module named silent after a whole-machine stall.
+  // after the previous one ended (turns wait ≤ 1 ms) means the machine held this thread. If the
+  // span is longer than 10 of the host's usual SYNC intervals (the shortest of the last 16), the
+  // plant is told to hold() it rather than integrate it on the next SYNC. A real robot's world does not pause, but a simulated one
+  // paused with its machine: integrating 0.2 s of plant afterwards (≈ 5 ms of work) answered
+  // the following SYNCs late, three cycles of replies missed and a module named silent after a
+  // whole-machine stall. No host integrates its model across 10 intervals without a sample (the
+  // observer skips an interval beyond kMaxGap + 1.5 periods), so that hold is invisible to it.
+  // A shorter span is integrated, as the real world would have moved: held, it made the modules'
+  // clocks (which ran on) and the plant disagree by the span, and at 100 Hz a 30–50 ms machine
+  // stall was an encoder_jump and a residual of 8–12 N·m (BusModel.AMachineStallAt100Hz…).
   void on_turn(std::int64_t now_ns) noexcept;
   void end_turn(std::int64_t now_ns) noexcept { last_turn_ns_ = now_ns; }
   // After on_sync: the sample, the counter module j echoes and its timing record.
@@ -189,6 +195,11 @@ class ModuleBank {
   std::uint64_t syncs_ = 0;
   std::int64_t last_sync_ns_ = -1, last_reply_ns_ = -1;
   std::int64_t sync_interval_ns_ = 0;   // the last SYNC interval under 100 ms [ns]
+  // The host's usual SYNC interval [ns]: the shortest of the last 16 intervals (a stall inflates
+  // one interval, not this; a slower host rate shows within 16 SYNCs).
+  std::int64_t usual_sync_ns_ = 0;
+  std::array<std::int64_t, 16> recent_sync_ns_{};
+  std::size_t recent_sync_next_ = 0;
   std::int64_t last_advance_ns_ = -1;   // host time the plant was last advanced to [ns]
   std::int64_t last_turn_ns_ = -1;      // end of the front end's previous loop turn [ns]
   Feedback sample_{};

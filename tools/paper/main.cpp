@@ -21,13 +21,15 @@
 
 #include "paper.hpp"
 #include "pedalwave/config/shipped.hpp"
+#include "pedalwave/toolkit/cli.hpp"
 
 namespace {
 
 namespace paper = pedalwave::paper;
 namespace model = pedalwave::model;
 
-constexpr int kExitBadInput = 2;
+namespace cli = pedalwave::toolkit::cli;
+constexpr int kExitBadInput = cli::kExitBadInput;
 
 struct Common {
   std::string out = "out/paper";
@@ -54,7 +56,8 @@ void add_common(CLI::App* sub, Common& c) {
   integ->needs(h);
   h->needs(integ);
   sub->add_option("--rate", c.rate, "control rate [Hz]")->check(CLI::PositiveNumber)->capture_default_str();
-  sub->add_option("--stair-scene", c.stair_scene, "box scene of stair and sweep (e.g. stair_grip)")
+  sub->add_option("--stair-scene", c.stair_scene,
+                  "box scene of stair and sweep: a name in --scenes (e.g. stair_grip) or a path to a .yaml file")
       ->capture_default_str();
   sub->add_flag("--no-plots", c.no_plots, "write no figures");
   sub->add_flag("--quiet", c.quiet, "no progress bars");
@@ -145,13 +148,7 @@ int main(int argc, char** argv) {
   all->add_option("--K", se.K, "sensitivity: SEA stiffness values [N·m/rad]")->capture_default_str();
   all->add_option("--I_r", se.I_r, "sensitivity: rotor inertia values [kg·m²]")->capture_default_str();
 
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    if (e.get_exit_code() == 0) return app.exit(e);
-    std::cerr << "pedalwave_paper: error: " << e.what() << '\n';
-    return kExitBadInput;
-  }
+  if (const auto rc = cli::parse(app, argc, argv, "pedalwave_paper")) return *rc;
 
   paper::Settings s;
   try {
@@ -160,7 +157,7 @@ int main(int argc, char** argv) {
       throw std::invalid_argument("--h " + std::to_string(s.integ->h) +
                                   ": expected ≤ the control period 1/rate = " + std::to_string(1.0 / s.rate_hz) + " s");
     (void)paper::sweep_grid(sw.from, sw.to, sw.step);
-    if (const auto f = s.scenes_dir / (s.stair_scene + ".yaml"); !std::filesystem::exists(f))
+    if (const auto f = paper::scene_file(s, s.stair_scene); !std::filesystem::exists(f))
       throw std::invalid_argument("--stair-scene " + s.stair_scene + ": no scene file " + f.string());
     for (double K : se.K)
       if (!(K > 0)) throw std::invalid_argument("--K " + std::to_string(K) + ": expected > 0 [N·m/rad]");

@@ -1,5 +1,5 @@
 // pedalwave_runtime: the runtime daemon. Loads a configuration (config/runtime/*.yaml), validates
-// everything before starting, runs the fixed-rate loop until the duration, SIGINT/SIGTERM, an
+// everything before starting, runs the fixed-rate loop until the duration, SIGINT/SIGTERM/SIGHUP/SIGQUIT, an
 // operator e-stop or a fault, and ends every exit with the driver's safe command. The exit status
 // says how the run ended (kExit* in daemon.hpp; the table is in the --help footer below).
 #include <CLI/CLI.hpp>

@@ -244,8 +244,11 @@ std::string summary_text(const RunConfig& c, const RunResult& r) {
   os << '\n';
   os << "run:              " << (ok ? "completed" : "STOPPED") << " at t = " << r.t_end << " s of "
      << c.scene.duration << " s (" << model::to_string(r.status) << ")\n";
-  os << "forward speed:    " << r.avg_speed * 100.0 << " cm/s average (COM x, t = " << r.avg_from
-     << " … " << (ok ? r.t_end : (r.t.empty() ? 0.0 : r.t.back())) << " s)\n";
+  if (ok)
+    os << "forward speed:    " << r.avg_speed * 100.0 << " cm/s average (COM x, t = " << r.avg_from
+       << " … " << r.t_end << " s)\n";
+  else  // the state before a blow-up is already wrong: a speed from it would be meaningless
+    os << "forward speed:    none (the run went numerically wrong)\n";
   os << "energy [J]:       initial " << r.e_initial << (ok ? ", final " : ", last good ") << r.e_final << ", min "
      << r.e_min << ", max " << r.e_max << " (kinetic + gravity + spring)\n";
   os << "work [J]:         motors " << r.w_motor << ", dissipated " << r.w_motor - (r.e_final - r.e_initial)

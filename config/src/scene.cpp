@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <sstream>
 
 #include "pedalwave/drivers/fault_injector.hpp"
 
@@ -217,6 +218,20 @@ Scene read_scene(const Reader& r) {
       }
       if (f.has("duration")) spec.duration = f.bounded("duration", spec.duration, 0, 1e6, "s", true);
       s.faults.push_back(spec);
+    }
+  }
+  // A start inside the ground stores k·depth²/2 per body point and launches the robot (2 cm into
+  // k = 1e5 N/m threw it 8.9 m up): the normal force k·depth may be at most 10 × the robot's
+  // weight (the links and the modules at the joints).
+  if (s.ground_on && s.initial.height < 0 && s.initial.pose != InitialPose::kExplicit) {
+    const Params& p = s.robot;
+    const double weight = (p.N * p.m_l + (p.N - 1) * p.m_r) * p.g;  // [N]
+    const double depth_max = 10.0 * weight / s.ground.k;             // [m]
+    if (-s.initial.height > depth_max) {
+      std::ostringstream os;
+      os << "a start at most " << depth_max << " m inside the ground (k·depth <= 10 × the robot's weight "
+         << weight << " N at ground.k = " << s.ground.k << " N/m; deeper, the ground launches the robot)";
+      r["initial"]["height"].fail(os.str());
     }
   }
   if (r.has("gait")) s.gait = read_gait(r["gait"]);

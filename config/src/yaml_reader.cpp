@@ -306,7 +306,8 @@ std::vector<double> Reader::numbers(const std::string& key) const {
 void Reader::allow_only(std::initializer_list<const char*> allowed) const {
   if (!node_.IsMap()) fail("a map");
   for (const auto& kv : node_) {
-    const std::string k = kv.first.as<std::string>();
+    // A key that is not a word (a list or a map as a key, `[a]: 1`) is no key of ours either.
+    const std::string k = kv.first.IsScalar() ? kv.first.Scalar() : "{complex key}";
     bool ok = false;
     std::string list;
     for (const char* a : allowed) {

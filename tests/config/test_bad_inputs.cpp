@@ -217,6 +217,11 @@ TEST(BadInputs, SceneContradictionsAreRefused) {
   EXPECT_EQ(e.rfind("bad.yaml:3:6: robot.K = [list]: expected one stiffness for every joint or N-1 = 3", 0), 0u) << e;
   e = scene_error("faults:\n  - {type: stale, value: 0}\n");
   EXPECT_NE(e.find("bad.yaml:2:26: faults[0].value = \"0\": expected an integer in [1, 15]"), std::string::npos) << e;
+  // 2 cm into a k = 1e5 ground would launch the robot (10 × its weight 6.87 N allows 0.69 mm).
+  e = scene_error("ground: {k: 1e5}\ninitial:\n  height: -0.02\n");
+  EXPECT_EQ(e.rfind("bad.yaml:3:11: initial.height = \"-0.02\": expected a start at most 0.0006867", 0), 0u) << e;
+  EXPECT_EQ(scene_error("ground: {k: 350}\ninitial:\n  height: -0.002\n"), "(no error)")
+      << "a shallow start in a soft ground is a documented option";
   e = scene_error("faults:\n  - {type: spring_scale, value: 0}\n");
   EXPECT_NE(e.find("faults[0].value = \"0\": expected a number in (0, 1e+06]"), std::string::npos) << e;
 }

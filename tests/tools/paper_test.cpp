@@ -243,7 +243,8 @@ TEST_F(Paper, AllRunsEndToEndWithEveryTableRowAndFiniteNumbers) {
 TEST_F(Paper, BadInputExitsTwoWithOneLine) {
   for (const std::string args : {"sweep --step 0", "flat --integrator euler --h 0.01", "flat --integrator magic --h 1e-4",
                                  "flat --h 1e-4", "stair --stair-scene nowhere",
-                                 "sensitivity --K 0", "sweep --from 3 --to 1", "nonsense"}) {
+                                 "sensitivity --K 0", "sweep --from 3 --to 1", "nonsense", "stair --k_c 1e300",
+                                 "flat --duration inf", "flat --rate nan"}) {
     const Exit e = run_exe(args + " --quiet --out '" + (dir_ / "bad").string() + "'");
     EXPECT_EQ(e.code, 2) << args << ": " << e.err;
     EXPECT_NE(e.err.find("error"), std::string::npos) << args;

@@ -183,6 +183,14 @@ TEST(BadInputs, DuplicateKeysAtAnyLevelAndInFlowMaps) {
   EXPECT_EQ(e.rfind("bad.yaml:3:31: obstacles[0].width = \"0.2\": expected each key once", 0), 0u) << e;
 }
 
+// Found by the YAML fuzzer (config/fuzz): a quoted key with a newline made a two-line message.
+TEST(BadInputs, MessagesStayOnOneLineWhateverTheKeyHolds) {
+  const std::string e = scene_error("\"durat\\nion\": 5\n");
+  EXPECT_EQ(e.rfind("bad.yaml:1:1: unknown key 'durat\\nion': expected one of name", 0), 0u) << e;
+  EXPECT_TRUE(one_line(e)) << e;
+  EXPECT_EQ(config::one_line("a\tb\x01" "c"), "a\\tb\\x01c");
+}
+
 TEST(BadInputs, EmptyFileDirectoryAndDevicesAreRefused) {
   const auto dir = std::filesystem::temp_directory_path() / ("pw_bad_inputs_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);

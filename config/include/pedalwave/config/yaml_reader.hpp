@@ -17,9 +17,14 @@
 
 namespace pedalwave::config {
 
+// The text of a message on one line: control characters (a quoted key or value may hold a
+// newline, "durat\n") are written as escapes, \n \r \t \xNN.
+std::string one_line(const std::string& text);
+
+// Every configuration error; its message is always one line (one_line).
 class ConfigError : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  explicit ConfigError(const std::string& what) : std::runtime_error(one_line(what)) {}
 };
 
 inline constexpr std::size_t kMaxFileBytes = 1u << 20;  // configuration files are small [bytes]

@@ -300,4 +300,32 @@ TEST_F(SimulateCli, FailedRunPrintsNoSpeedAndGivesTheStabilityLimit) {
   EXPECT_NE(r.stderr_text.find("use h ≤"), std::string::npos) << r.stderr_text;
 }
 
+// A start inside the ground: the energy line says what the ground holds at t = 0.
+TEST_F(SimulateCli, EnergyLineNamesTheEnergyStoredInTheGroundAtTheStart) {
+  const fs::path scene = dir_ / "sunk.yaml";
+  std::ofstream(scene) << "name: sunk\nground: {k: 350, d: 15, mu: 0.82}\ninitial: {pose: flat, height: -0.001}\n"
+                          "duration: 0.05\n";
+  const Result r = run_sim("'" + scene.string() + "' --controller none --no-plots --quiet --out '" +
+                               (dir_ / "out").string() + "'",
+                           dir_);
+  ASSERT_EQ(r.code, 0) << r.stderr_text;
+  const std::string summary = [&] {
+    std::ifstream f(dir_ / "out" / "summary.txt");
+    std::stringstream ss;
+    ss << f.rdbuf();
+    return ss.str();
+  }();
+  // Flat: all 13 points 1 mm deep: 13 × ½ · 350 · (1e-3)² = 2.275e-3 J.
+  EXPECT_NE(summary.find("; 0.002275 J more stored in the ground at t = 0 (the start is 1 mm inside it)"),
+            std::string::npos) << summary;
+  const Result flat = run_sim("'" + kScenes + "flat_high_friction.yaml' --duration 0.05 --no-plots --quiet --out '" +
+                                  (dir_ / "out2").string() + "'",
+                              dir_);
+  ASSERT_EQ(flat.code, 0);
+  std::ifstream f(dir_ / "out2" / "summary.txt");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  EXPECT_EQ(ss.str().find("stored in the ground"), std::string::npos) << "a start resting on the ground stores none";
+}
+
 }  // namespace

@@ -45,19 +45,19 @@ void read_controller(const Reader& r, DaemonConfig& c) {
   r.allow_only({"k_c", "pd_placement", "K_p", "K_D", "tau_max", "tau_rate_max", "gait",
                 "M_d", "D_d", "K_d", "eta_min", "eta_max"});
   control::GaitControllerParams& p = c.controller;
-  p.admittance.k_c = r.number("k_c", 0.0);
-  p.admittance.M_d = r.positive("M_d", p.admittance.M_d);
-  p.admittance.D_d = r.positive("D_d", p.admittance.D_d);
-  p.admittance.K_d = r.positive("K_d", p.admittance.K_d);
-  p.admittance.eta_min = r.number("eta_min", p.admittance.eta_min);
-  p.admittance.eta_max = r.number("eta_max", p.admittance.eta_max);
+  p.admittance.k_c = r.bounded("k_c", 0.0, -1e3, 1e3, "-");
+  p.admittance.M_d = r.bounded("M_d", p.admittance.M_d, 0, 1e6, "", true);
+  p.admittance.D_d = r.bounded("D_d", p.admittance.D_d, 0, 1e6, "", true);
+  p.admittance.K_d = r.bounded("K_d", p.admittance.K_d, 0, 1e6, "", true);
+  p.admittance.eta_min = r.bounded("eta_min", p.admittance.eta_min, -2 * M_PI, 2 * M_PI, "rad");
+  p.admittance.eta_max = r.bounded("eta_max", p.admittance.eta_max, -2 * M_PI, 2 * M_PI, "rad");
   p.pd.placement = r.choice("pd_placement", "module", {"module", "host"}) == "host"
                        ? control::PdPlacement::kHost
                        : control::PdPlacement::kModule;
-  if (r.has("K_p")) p.pd.K_p = r.numbers("K_p");
-  if (r.has("K_D")) p.pd.K_D = r.numbers("K_D");
-  if (r.has("tau_max")) p.limits.tau_max = r.numbers("tau_max");
-  if (r.has("tau_rate_max")) p.limits.tau_rate_max = r.numbers("tau_rate_max");
+  if (r.has("K_p")) p.pd.K_p = r.bounded_numbers("K_p", 0, 1e6, "N·m/rad");
+  if (r.has("K_D")) p.pd.K_D = r.bounded_numbers("K_D", 0, 1e6, "N·m·s/rad");
+  if (r.has("tau_max")) p.limits.tau_max = r.bounded_numbers("tau_max", 0, 1e4, "N·m", true);
+  if (r.has("tau_rate_max")) p.limits.tau_rate_max = r.bounded_numbers("tau_rate_max", 0, 1e9, "N·m/s", true);
   if (r.has("gait")) {
     const model::GaitParams g = read_gait(r["gait"]);
     p.gait.A_p = g.A_p;
@@ -90,15 +90,18 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
                       ? drivers::SimClock::kFreeRunning
                       : drivers::SimClock::kLockstep;
     d.sim.period = period;
-    d.sim.command_timeout = r.positive("command_timeout", 0.05);
+    d.sim.command_timeout = r.bounded("command_timeout", 0.05, 0, 10, "s", true);
     c.robot = d.scene.robot;  // the controller is tuned for the simulated robot
   } else if (d.kind == DriverKind::kSocketCan) {
     d.can.ifname = r.string("ifname", "can0");
+    if (d.can.ifname.empty() || d.can.ifname.size() > 15 ||
+        d.can.ifname.find_first_of("/ \t") != std::string::npos)
+      r["ifname"].fail("a network interface name (1 … 15 characters, no '/' or blanks)");
     d.can.joints = joints;
     d.can.fd = r.boolean("fd", false);
-    d.can.bitrate = r.positive("bitrate", 1e6);
-    d.can.data_bitrate = r.positive("data_bitrate", 5e6);
-    d.can.max_load = r.positive("max_load", 0.8);
+    d.can.bitrate = r.bounded("bitrate", 1e6, 0, 1e6, "bit/s", true);
+    d.can.data_bitrate = r.bounded("data_bitrate", 5e6, 0, 1.2e7, "bit/s", true);
+    d.can.max_load = r.bounded("max_load", 0.8, 0, 1, "-", true);
     d.can.period_s = period;
     checked(r, "driver", [&] {
       drivers::check_can_bus_budget({d.can.joints, d.can.period_s, d.can.bitrate, d.can.fd,
@@ -106,11 +109,12 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
     });
   } else {
     d.serial.device = r.string("device", "/dev/ttyUSB0");
+    if (d.serial.device.empty()) r["device"].fail("a device path (e.g. /dev/ttyUSB0)");
     d.serial.baud = static_cast<int>(r.integer("baud", 4'000'000, 9600, 4'000'000));
     d.serial.joints = joints;
-    d.serial.return_delay_s = r.non_negative("return_delay", 20e-6);
-    d.serial.turnaround_s = r.non_negative("turnaround", 0.0);
-    d.serial.max_load = r.positive("max_load", 0.8);
+    d.serial.return_delay_s = r.bounded("return_delay", 20e-6, 0, 0.1, "s");
+    d.serial.turnaround_s = r.bounded("turnaround", 0.0, 0, 0.1, "s");
+    d.serial.max_load = r.bounded("max_load", 0.8, 0, 1, "-", true);
     d.serial.period_s = period;
     checked(r, "driver", [&] {
       drivers::check_serial_bus_budget({d.serial.joints, d.serial.period_s, d.serial.baud,
@@ -131,8 +135,8 @@ void read_realtime(const Reader& r, DaemonConfig& c) {
   rc.clock = r.choice("clock", "realtime", {"realtime", "lockstep"}) == "lockstep"
                  ? runtime::ClockMode::kLockstep
                  : runtime::ClockMode::kRealtime;
-  rc.read_budget = r.positive("read_budget", rc.read_budget);
-  rc.stale_timeout = r.positive("stale_timeout", rc.stale_timeout);
+  rc.read_budget = r.bounded("read_budget", rc.read_budget, 0, 1, "of the period", true);
+  rc.stale_timeout = r.bounded("stale_timeout", rc.stale_timeout, 0, 10, "s", true);
   rc.overrun_fault_after = static_cast<std::uint32_t>(r.integer("overrun_fault_after", 0, 0, 1 << 30));
   rc.auto_start = r.boolean("auto_start", true);
 }
@@ -144,6 +148,9 @@ void read_telemetry(const Reader& r, DaemonConfig& c) {
   t.enabled = r.boolean("enabled", true);
   t.domain_id = static_cast<std::uint32_t>(r.integer("domain_id", 0, 0, 232));
   t.interface = r.string("interface", "lo");
+  if (t.interface.empty() || t.interface.size() > 15 ||
+      t.interface.find_first_of("/ \t") != std::string::npos)
+    r["interface"].fail("a network interface name (1 … 15 characters, no '/' or blanks)");
   if (r.has("peers")) {
     const Reader p = r["peers"];
     if (!p.is_sequence()) p.fail("a list of addresses");
@@ -152,10 +159,10 @@ void read_telemetry(const Reader& r, DaemonConfig& c) {
   t.decimation_state = static_cast<int>(r.integer("decimation_state", 10, 1, 100000));
   t.decimation_timing = static_cast<int>(r.integer("decimation_timing", 10, 1, 100000));
   t.commands = r.boolean("commands", true);
-  t.amplitude_max = r.positive("amplitude_max", t.amplitude_max);
-  t.omega_max = r.positive("omega_max", t.omega_max);
-  t.eta_min = r.number("eta_min", t.eta_min);
-  t.eta_max = r.number("eta_max", t.eta_max);
+  t.amplitude_max = r.bounded("amplitude_max", t.amplitude_max, 0, M_PI, "rad", true);
+  t.omega_max = r.bounded("omega_max", t.omega_max, 0, 100, "rad/s", true);
+  t.eta_min = r.bounded("eta_min", t.eta_min, -2 * M_PI, 2 * M_PI, "rad");
+  t.eta_max = r.bounded("eta_max", t.eta_max, -2 * M_PI, 2 * M_PI, "rad");
 }
 
 // Timeouts from the rate and the bus unless the file gives them (README "Timeouts"):
@@ -221,7 +228,52 @@ void derive_timeouts(const Reader& r, DaemonConfig& c) {
   c.timing_note = note;
 }
 
+// The daemon's `robot:` beside a simulated plant must describe the scene's robot: the controller
+// is tuned for the robot it drives (the scene's), and a robot: {N: 12} beside a 6-link scene would
+// otherwise run 5 joints while saying 11. Every key the section gives is compared.
+void check_robot_matches_scene(const Reader& r, const model::Params& scene, const std::string& scene_path) {
+  const model::Params given = read_robot(r);
+  auto differ = [](double a, double b) { return std::abs(a - b) > 1e-12 * std::max(std::abs(a), std::abs(b)); };
+  auto refuse = [&](const char* key, const std::string& scene_value) {
+    r[key].fail("the simulated robot's value " + scene_value + " (driver.scene: " + scene_path +
+                "); the robot section is optional beside a sim driver");
+  };
+  auto num = [](double v) {
+    std::ostringstream os;
+    os << v;
+    return os.str();
+  };
+  if (r.has("N") && given.N != scene.N) refuse("N", std::to_string(scene.N));
+  if (r.has("m_l") && differ(given.m_l, scene.m_l)) refuse("m_l", num(scene.m_l));
+  if (r.has("link_length") && differ(given.l, scene.l)) refuse("link_length", num(2 * scene.l));
+  if (r.has("I_l") && differ(given.I_l, scene.I_l)) refuse("I_l", num(scene.I_l));
+  if (r.has("m_r") && differ(given.m_r, scene.m_r)) refuse("m_r", num(scene.m_r));
+  if (r.has("I_r") && differ(given.I_r, scene.I_r)) refuse("I_r", num(scene.I_r));
+  if (r.has("n") && differ(given.n, scene.n)) refuse("n", num(scene.n));
+  if (r.has("g") && differ(given.g, scene.g)) refuse("g", num(scene.g));
+  if (r.has("joints") && given.joints != scene.joints)
+    refuse("joints", scene.joints == model::JointModel::kRigid ? "rigid" : "flexible");
+  if (r.has("K"))
+    for (int j = 0; j < scene.N - 1; ++j)
+      if (j >= given.N - 1 || differ(given.stiffness(j), scene.stiffness(j)))
+        refuse("K", "K[" + std::to_string(j) + "] = " + num(scene.stiffness(j)));
+}
+
 }  // namespace
+
+std::string duration_problem(double duration, double rate_hz) {
+  if (!std::isfinite(duration) || duration < 0 || duration > kMaxDuration) {
+    std::ostringstream os;
+    os << "a run time in [0, " << kMaxDuration << "] s (0 = until a signal)";
+    return os.str();
+  }
+  if (duration > 0 && duration * rate_hz < 0.5) {
+    std::ostringstream os;
+    os << "0 (until a signal) or at least one control period 1/rate_hz = " << 1.0 / rate_hz << " s";
+    return os.str();
+  }
+  return "";
+}
 
 DaemonConfig parse_daemon_config(const std::string& text, const std::string& name,
                                  const std::string& base_dir) {
@@ -231,14 +283,18 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
   DaemonConfig c;
   c.source = name;
   c.name = r.string("name", "pedalwave");
-  c.duration = r.non_negative("duration", 0.0);
   c.runtime.rt.rate_hz = r.positive("rate_hz", 1000.0);
   if (c.runtime.rt.rate_hz > runtime::kMaxRateHz) r["rate_hz"].fail("a rate in (0, 20000] Hz");
+  c.duration = r.bounded("duration", 0.0, 0, kMaxDuration, "s");
+  if (const std::string why = duration_problem(c.duration, c.runtime.rt.rate_hz); !why.empty())
+    r["duration"].fail(why);
   if (r.has("robot")) c.robot = read_robot(r["robot"]);
   if (r.has("realtime")) read_realtime(r["realtime"], c);
   else c.runtime.auto_start = true;
   if (!r.has("driver")) r.fail_key("driver", "a driver section (type: sim | socketcan | serial)");
   read_driver(r["driver"], base_dir, c);
+  if (c.driver.kind == DriverKind::kSim && r.has("robot"))
+    check_robot_matches_scene(r["robot"], c.driver.scene.robot, c.driver.scene_path);
   // Controller: matched to the robot (K, n² I_r), at the loop rate.
   control::GaitControllerParams& p = c.controller;
   p.joints = c.robot.N - 1;
@@ -281,7 +337,8 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
 }
 
 DaemonConfig load_daemon_config(const std::string& path) {
-  const Reader r = Reader::load_file(path);  // for the I/O error message
+  // load_file refuses what is not a small regular file (a directory, /dev/zero) and an empty one.
+  const Reader r = Reader::load_file(path);
   (void)r;
   std::ifstream in(path);
   std::stringstream ss;

@@ -1,23 +1,112 @@
 #include "pedalwave/config/yaml_reader.hpp"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 namespace pedalwave::config {
 
+std::string one_line(const std::string& text) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char c : text) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '\n') out += "\\n";
+    else if (c == '\r') out += "\\r";
+    else if (c == '\t') out += "\\t";
+    else if (u < 0x20 || u == 0x7f) {
+      static const char* hex = "0123456789abcdef";
+      out += "\\x";
+      out += hex[u >> 4];
+      out += hex[u & 15];
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
+namespace {
+
+std::string mark_text(const std::string& file, const YAML::Mark& m) {
+  std::ostringstream os;
+  os << file;
+  if (m.line >= 0) os << ":" << m.line + 1 << ":" << m.column + 1;
+  return os.str();
+}
+
+std::string value_text(const YAML::Node& n) {
+  if (n.IsScalar()) return " = \"" + n.Scalar() + "\"";
+  if (n.IsSequence()) return " = [list]";
+  if (n.IsMap()) return " = {map}";
+  return "";
+}
+
+// Every map of the document, at any depth, has each key once (yaml-cpp keeps both entries and
+// node[key] returns the first: a repeated key would silently lose its second value).
+void check_unique_keys(const YAML::Node& n, const std::string& file, const std::string& path,
+                       int depth) {
+  if (depth > 64) {
+    throw ConfigError(mark_text(file, n.Mark()) + ": " + (path.empty() ? "(top level)" : path) +
+                      ": expected at most 64 levels of nesting");
+  }
+  if (n.IsMap()) {
+    std::map<std::string, YAML::Mark> seen;
+    for (const auto& kv : n) {
+      const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : "{complex key}";
+      const std::string child = path.empty() ? key : path + "." + key;
+      const auto [first, fresh] = seen.emplace(key, kv.first.Mark());
+      if (!fresh) {
+        std::ostringstream os;
+        os << mark_text(file, kv.first.Mark()) << ": " << child << value_text(kv.second)
+           << ": expected each key once (duplicate key: '" << key << "' is already given at line "
+           << first->second.line + 1 << ")";
+        throw ConfigError(os.str());
+      }
+      check_unique_keys(kv.second, file, child, depth + 1);
+    }
+  } else if (n.IsSequence()) {
+    for (std::size_t i = 0; i < n.size(); ++i)
+      check_unique_keys(n[i], file, path + "[" + std::to_string(i) + "]", depth + 1);
+  }
+}
+
+}  // namespace
+
 Reader Reader::load_file(const std::string& path) {
+  // Only a regular file of a sane size: a directory opens "fine" and reads nothing (the defaults
+  // would run), /dev/zero or a pipe never ends.
+  std::error_code ec;
+  const auto st = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(st))
+    throw ConfigError(path + ": cannot open the file (does it exist? is it readable?)");
+  if (std::filesystem::is_directory(st))
+    throw ConfigError(path + ": is a directory: expected a YAML file");
+  if (!std::filesystem::is_regular_file(st))
+    throw ConfigError(path + ": is not a regular file (a device, a pipe or a socket): expected a YAML file");
+  const auto bytes = std::filesystem::file_size(path, ec);
+  if (ec || bytes > kMaxFileBytes)
+    throw ConfigError(path + ": is " + (ec ? std::string("of unknown size") : std::to_string(bytes) + " bytes") +
+                      ": expected a YAML file of at most " + std::to_string(kMaxFileBytes) + " bytes");
   std::ifstream in(path);
   if (!in) throw ConfigError(path + ": cannot open the file (does it exist? is it readable?)");
   std::stringstream ss;
   ss << in.rdbuf();
-  return parse(ss.str(), path);
+  const std::string text = ss.str();
+  Reader r = parse(text, path);  // syntax errors and duplicate keys first
+  // An empty file (or only comments, `---`, `~`) would run every default: refused.
+  if (const YAML::Node doc = YAML::Load(text); !doc.IsDefined() || doc.IsNull())
+    throw ConfigError(path + ":1:1: (top level) = \"\": expected a YAML map of keys (the file is empty)");
+  return r;
 }
 
 Reader Reader::parse(const std::string& text, const std::string& name) {
   try {
     YAML::Node n = YAML::Load(text);
     if (!n.IsDefined() || n.IsNull()) n = YAML::Node(YAML::NodeType::Map);
+    check_unique_keys(n, name, "", 0);
     return Reader(n, name, "");
   } catch (const YAML::Exception& e) {
     std::ostringstream os;
@@ -169,6 +258,39 @@ long long Reader::integer(const std::string& key, long long def, long long lo, l
   return v;
 }
 
+double Reader::bounded(const std::string& key, double def, double lo, double hi, const char* unit,
+                       bool lo_open) const {
+  if (!has(key)) return def;
+  const Reader r = (*this)[key];
+  const double v = r.as_number();
+  if (!std::isfinite(v) || (lo_open ? !(v > lo) : !(v >= lo)) || !(v <= hi)) {
+    std::ostringstream os;
+    os << "a number in " << (lo_open ? "(" : "[") << lo << ", " << hi << "]";
+    if (unit && *unit) os << " [" << unit << "]";
+    r.fail(os.str());
+  }
+  return v;
+}
+
+std::vector<double> Reader::bounded_numbers(const std::string& key, double lo, double hi,
+                                            const char* unit, bool lo_open) const {
+  std::vector<double> out;
+  if (!has(key)) return out;
+  const Reader r = (*this)[key];
+  std::ostringstream os;
+  os << "a number in " << (lo_open ? "(" : "[") << lo << ", " << hi << "]";
+  if (unit && *unit) os << " [" << unit << "]";
+  auto check = [&](const Reader& e) {
+    const double v = e.as_number();
+    if (!std::isfinite(v) || (lo_open ? !(v > lo) : !(v >= lo)) || !(v <= hi)) e.fail(os.str());
+    return v;
+  };
+  if (r.is_scalar()) return {check(r)};
+  if (!r.is_sequence()) r.fail("a number or a list of numbers");
+  for (std::size_t i = 0; i < r.size(); ++i) out.push_back(check(r.at(i)));
+  return out;
+}
+
 bool Reader::boolean(const std::string& key, bool def) const {
   return has(key) ? (*this)[key].as_bool() : def;
 }
@@ -204,7 +326,8 @@ std::vector<double> Reader::numbers(const std::string& key) const {
 void Reader::allow_only(std::initializer_list<const char*> allowed) const {
   if (!node_.IsMap()) fail("a map");
   for (const auto& kv : node_) {
-    const std::string k = kv.first.as<std::string>();
+    // A key that is not a word (a list or a map as a key, `[a]: 1`) is no key of ours either.
+    const std::string k = kv.first.IsScalar() ? kv.first.Scalar() : "{complex key}";
     bool ok = false;
     std::string list;
     for (const char* a : allowed) {

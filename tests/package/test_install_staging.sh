@@ -30,7 +30,7 @@ done
 grep -q "^ExecStart=$BIN_DIR/pedalwave_runtime --config $CONF_DIR/robot.yaml " "$stage$UNIT_DIR/pedalwave-runtime.service" \
   || fail "the unit's ExecStart does not name $BIN_DIR/pedalwave_runtime and $CONF_DIR/robot.yaml"
 
-out=$("$stage$BIN_DIR/pedalwave_runtime" --check --config "$stage$CONF_DIR/robot.yaml") || fail "--check refused the staged robot.yaml"
+out=$("$stage$BIN_DIR/pedalwave_runtime" --check-config --config "$stage$CONF_DIR/robot.yaml") || fail "--check-config refused the staged robot.yaml"
 echo "$out"
 [[ "$out" == *"waits in READY"* ]] || fail "the shipped robot.yaml starts walking on its own"
 

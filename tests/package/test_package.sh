@@ -3,7 +3,7 @@
 #   dpkg -i           files in place, conffile, pedalwave user and group, state and log folders,
 #                     the unit installed but not enabled, dependencies from dpkg-shlibdeps
 #   systemd-analyze verify <unit dir>/pedalwave-runtime.service: nothing about the unit
-#   pedalwave_runtime --check --config /etc/pedalwave/robot.yaml: accepted, no auto-start
+#   pedalwave_runtime --check-config --config /etc/pedalwave/robot.yaml: accepted, no auto-start
 #   as the pedalwave user, with the unit's --state-dir /var/lib/pedalwave: a crash marker keeps an
 #                     auto-starting simulated-plant run READY (exit 0, marker cleared); a fault
 #                     run exits 4 and leaves no marker
@@ -78,8 +78,8 @@ else
   fail "systemd-analyze not installed (package systemd; tools/scripts/deps.sh installs it)"
 fi
 
-step "$BIN_DIR/pedalwave_runtime --check --config $CONF_DIR/robot.yaml"
-out=$("$BIN_DIR/pedalwave_runtime" --check --config "$CONF_DIR/robot.yaml") || fail "--check refused $CONF_DIR/robot.yaml (exit $?)"
+step "$BIN_DIR/pedalwave_runtime --check-config --config $CONF_DIR/robot.yaml"
+out=$("$BIN_DIR/pedalwave_runtime" --check-config --config "$CONF_DIR/robot.yaml") || fail "--check-config refused $CONF_DIR/robot.yaml (exit $?)"
 echo "$out"
 [[ "$out" == *"waits in READY"* ]] || fail "the installed robot.yaml starts walking on its own"
 help=$("$BIN_DIR/pedalwave_runtime" --help) || fail "--help exited $?"

@@ -243,12 +243,31 @@ TEST_F(Paper, AllRunsEndToEndWithEveryTableRowAndFiniteNumbers) {
 TEST_F(Paper, BadInputExitsTwoWithOneLine) {
   for (const std::string args : {"sweep --step 0", "flat --integrator euler --h 0.01", "flat --integrator magic --h 1e-4",
                                  "flat --h 1e-4", "stair --stair-scene nowhere",
-                                 "sensitivity --K 0", "sweep --from 3 --to 1", "nonsense"}) {
+                                 "sensitivity --K 0", "sweep --from 3 --to 1", "nonsense", "stair --k_c 1e300",
+                                 "flat --duration inf", "flat --rate nan"}) {
     const Exit e = run_exe(args + " --quiet --out '" + (dir_ / "bad").string() + "'");
     EXPECT_EQ(e.code, 2) << args << ": " << e.err;
     EXPECT_NE(e.err.find("error"), std::string::npos) << args;
     EXPECT_EQ(std::count(e.err.begin(), e.err.end(), '\n'), 1) << args << ": " << e.err;
   }
+}
+
+// Issue 15: a wrong subcommand is named; --stair-scene takes a path as given.
+TEST_F(Paper, ABadSubcommandIsNamedAndAStairScenePathIsTakenAsGiven) {
+  Exit e = run_exe("dance --quiet");
+  EXPECT_EQ(e.code, 2);
+  EXPECT_EQ(e.err, "pedalwave_paper: error: 'dance' is not a subcommand: expected one of flat, friction, stair, "
+                   "sweep, sensitivity, all (see --help)\n");
+  const std::string path = (dir_ / "my_stair.yaml").string();
+  e = run_exe("stair --quiet --stair-scene '" + path + "' --out '" + (dir_ / "bad").string() + "'");
+  EXPECT_EQ(e.code, 2);
+  EXPECT_NE(e.err.find("no scene file " + path + "\n"), std::string::npos) << e.err;
+  EXPECT_EQ(e.err.find("my_stair.yaml.yaml"), std::string::npos) << e.err;
+  paper::Settings s;
+  s.scenes_dir = "/scenes";
+  EXPECT_EQ(paper::scene_file(s, "stair_grip"), std::filesystem::path("/scenes/stair_grip.yaml"));
+  EXPECT_EQ(paper::scene_file(s, path), std::filesystem::path(path));
+  EXPECT_EQ(paper::scene_file(s, "rel/x.yaml"), std::filesystem::path("rel/x.yaml"));
 }
 
 }  // namespace

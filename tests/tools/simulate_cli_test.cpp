@@ -233,4 +233,99 @@ TEST_F(SimulateCli, NonFiniteStateStopsTheRunWithExitCode3) {
   expect_all_finite(t);  // only good states were written
 }
 
+// Issue 15: every bad input is one line and exit 2, naming the option or the file, line and key.
+TEST_F(SimulateCli, ContradictionsAndAbsurdValuesAreBadInput) {
+  const std::string flat = "'" + kScenes + "flat_high_friction.yaml' --no-plots --quiet --out '" + (dir_ / "out").string() + "' ";
+  struct Case {
+    std::string args, message;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"--h 0.005", "pedalwave_sim: error: --h 0.005: expected a step ≤ the control period 1/rate = 0.001 s\n"},
+           {"--h 10", "'10': expected a finite number in [1e-07, 0.1]"},
+           {"--rtol 1e-6", "pedalwave_sim: error: --rtol 0.000001: expected --integrator dopri45"},
+           {"--k_c 1e300", "'1e300': expected a finite number in [-1000, 1000]"},
+           {"--duration nan", "'nan': expected a finite number > 0"},
+           {"--duration inf", "'inf': expected a finite number > 0"}}) {
+    const Result r = run_sim(flat + c.args, dir_);
+    EXPECT_EQ(r.code, 2) << c.args << ": " << r.stderr_text;
+    EXPECT_NE(r.stderr_text.find(c.message), std::string::npos) << c.args << ": " << r.stderr_text;
+    EXPECT_EQ(std::count(r.stderr_text.begin(), r.stderr_text.end(), '\n'), 1) << c.args << ": " << r.stderr_text;
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "trajectory.csv"));
+}
+
+TEST_F(SimulateCli, SceneValuesAreBlamedOnTheSceneKeyAndFaultsAreNotIgnored) {
+  const fs::path long_scene = dir_ / "long.yaml";
+  std::ofstream(long_scene) << "name: long\nground: {}\nduration: 1e300\n";
+  Result r = run_sim("'" + long_scene.string() + "' --out '" + (dir_ / "out").string() + "'", dir_);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.stderr_text, "pedalwave_sim: error: " + long_scene.string() +
+                               ":3:11: duration = \"1e300\": expected a number in (0, 1e+06] [s]\n");
+  const fs::path faulty = dir_ / "faulty.yaml";
+  std::ofstream(faulty) << "name: faulty\nground: {}\nfaults:\n  - {type: torque_gain, joint: 1, value: 0}\n";
+  r = run_sim("'" + faulty.string() + "' --out '" + (dir_ / "out").string() + "'", dir_);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.stderr_text.rfind("pedalwave_sim: error: " + faulty.string() +
+                                    ":4:3: faults = [list]: expected no faults: list (pedalwave_sim does not inject them",
+                                0),
+            0u)
+      << r.stderr_text;
+  const fs::path dup = dir_ / "dup.yaml";
+  std::ofstream(dup) << "name: dup\nrobot: {N: 6, N: 40}\n";
+  r = run_sim("'" + dup.string() + "' --out '" + (dir_ / "out").string() + "'", dir_);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.stderr_text.find(dup.string() + ":2:15: robot.N = \"40\": expected each key once"), std::string::npos)
+      << r.stderr_text;
+  const fs::path empty = dir_ / "empty.yaml";
+  std::ofstream(empty) << "\n";
+  r = run_sim("'" + empty.string() + "'", dir_);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.stderr_text.find("the file is empty"), std::string::npos) << r.stderr_text;
+  r = run_sim("'" + dir_.string() + "'", dir_);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.stderr_text.find(dir_.string() + ": is a directory: expected a YAML file"), std::string::npos) << r.stderr_text;
+}
+
+// A run that goes numerically wrong prints no speed and says which step would work.
+TEST_F(SimulateCli, FailedRunPrintsNoSpeedAndGivesTheStabilityLimit) {
+  const Result r = run_sim("'" + kScenes + "flat_high_friction.yaml' --integrator euler --h 0.01 "
+                           "--rate 100 --duration 5 --out '" + (dir_ / "out").string() + "' --no-plots",
+                           dir_);
+  EXPECT_EQ(r.code, 3) << r.stderr_text;
+  EXPECT_EQ(r.stdout_text.find("cm/s average"), std::string::npos) << r.stdout_text;
+  EXPECT_NE(r.stdout_text.find("forward speed:    none (the run went numerically wrong)"), std::string::npos)
+      << r.stdout_text;
+  EXPECT_NE(r.stdout_text.find("stability:        h = "), std::string::npos) << r.stdout_text;
+  EXPECT_NE(r.stderr_text.find("stability limit"), std::string::npos) << r.stderr_text;
+  EXPECT_NE(r.stderr_text.find("use h ≤"), std::string::npos) << r.stderr_text;
+}
+
+// A start inside the ground: the energy line says what the ground holds at t = 0.
+TEST_F(SimulateCli, EnergyLineNamesTheEnergyStoredInTheGroundAtTheStart) {
+  const fs::path scene = dir_ / "sunk.yaml";
+  std::ofstream(scene) << "name: sunk\nground: {k: 350, d: 15, mu: 0.82}\ninitial: {pose: flat, height: -0.001}\n"
+                          "duration: 0.05\n";
+  const Result r = run_sim("'" + scene.string() + "' --controller none --no-plots --quiet --out '" +
+                               (dir_ / "out").string() + "'",
+                           dir_);
+  ASSERT_EQ(r.code, 0) << r.stderr_text;
+  const std::string summary = [&] {
+    std::ifstream f(dir_ / "out" / "summary.txt");
+    std::stringstream ss;
+    ss << f.rdbuf();
+    return ss.str();
+  }();
+  // Flat: all 13 points 1 mm deep: 13 × ½ · 350 · (1e-3)² = 2.275e-3 J.
+  EXPECT_NE(summary.find("; 0.002275 J more stored in the ground at t = 0 (the start is 1 mm inside it)"),
+            std::string::npos) << summary;
+  const Result flat = run_sim("'" + kScenes + "flat_high_friction.yaml' --duration 0.05 --no-plots --quiet --out '" +
+                                  (dir_ / "out2").string() + "'",
+                              dir_);
+  ASSERT_EQ(flat.code, 0);
+  std::ifstream f(dir_ / "out2" / "summary.txt");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  EXPECT_EQ(ss.str().find("stored in the ground"), std::string::npos) << "a start resting on the ground stores none";
+}
+
 }  // namespace

@@ -3,6 +3,8 @@
 //   --calibrate   nominal residual/consistency/hold/saturation statistics per scene (thresholds)
 #include <CLI/CLI.hpp>
 
+#include "pedalwave/toolkit/cli.hpp"
+
 #include <algorithm>
 #include <atomic>
 #include <time.h>
@@ -346,7 +348,7 @@ int main(int argc, char** argv) {
   bool no_noise = false;
   app.add_option("--trace", trace_s, "print a trace of the flat scene for this long [s]");
   app.add_flag("--no-noise", no_noise, "sensor noise off");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_faultbench")) return *rc;
   if (trace_s > 0) return trace(trace_s, !no_noise);
   if (calib) return calibrate(minutes, jobs);
   if (coupling_s > 0) {

@@ -26,6 +26,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "pedalwave/toolkit/cli.hpp"
+
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -438,7 +440,7 @@ int main(int argc, char** argv) {
   app.add_option("--domain", o.domain, "DDS domain id (loopback)")->check(CLI::Range(0, 232));
   app.add_flag("!--no-subscriber", o.subscriber, "no subscriber child process");
   app.add_flag("-v,--verbose", o.verbose, "print the per-stage table of every phase");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_loopbench")) return *rc;
 
   try {
     const int demo_decimation =

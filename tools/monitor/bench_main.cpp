@@ -20,6 +20,8 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+
+#include "pedalwave/toolkit/cli.hpp"
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -179,7 +181,7 @@ int main(int argc, char** argv) {
   app.add_option("--domain", domain, "DDS domain id (keep clear of other users)")
       ->check(CLI::Range(0, 232))
       ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_telemetry_bench")) return *rc;
   spdlog::set_level(spdlog::level::warn);
 
   std::printf("DDS telemetry, loopback, two processes, %g Hz for %g s per N, 4 state topics "

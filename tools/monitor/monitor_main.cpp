@@ -11,6 +11,8 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+
+#include "pedalwave/toolkit/cli.hpp"
 #include <spdlog/spdlog.h>
 
 #include <atomic>
@@ -86,7 +88,7 @@ int main(int argc, char** argv) {
   app.add_option("--amplitude", amplitude, "gait amplitude A_p [rad] (--command gait)");
   app.add_option("--omega", omega, "gait frequency omega [rad/s] (--command gait)");
   app.add_option("--eta", eta, "nominal eta [rad] (--command gait)");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_monitor")) return *rc;
 
   spdlog::set_level(spdlog::level::warn);  // the screen is ours
   struct sigaction sa {};

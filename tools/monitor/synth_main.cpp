@@ -11,6 +11,8 @@
 #include <time.h>
 
 #include <CLI/CLI.hpp>
+
+#include "pedalwave/toolkit/cli.hpp"
 #include <spdlog/spdlog.h>
 
 #include <atomic>
@@ -53,7 +55,7 @@ int main(int argc, char** argv) {
   app.add_flag("--no-commands", no_commands, "reject every command but emergency stop");
   app.add_option("--decimate", decimate, "publish every k-th cycle on every state topic")
       ->check(CLI::PositiveNumber);
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_telemetry_synth")) return *rc;
   cfg.enable_commands = !no_commands;
   cfg.decimation = {decimate, decimate, decimate, decimate};
 

@@ -21,13 +21,15 @@
 
 #include "paper.hpp"
 #include "pedalwave/config/shipped.hpp"
+#include "pedalwave/toolkit/cli.hpp"
 
 namespace {
 
 namespace paper = pedalwave::paper;
 namespace model = pedalwave::model;
 
-constexpr int kExitBadInput = 2;
+namespace cli = pedalwave::toolkit::cli;
+constexpr int kExitBadInput = cli::kExitBadInput;
 
 struct Common {
   std::string out = "out/paper";
@@ -50,11 +52,12 @@ void add_common(CLI::App* sub, Common& c) {
                                  "euler | semi_implicit_euler | implicit_velocity | rk4 | dopri45 (default: each "
                                  "scene's own, the work-precision study's choice)");
   auto* h = sub->add_option("--h", c.h, "plant integrator step [s] (≤ the control period; with --integrator)")
-                ->check(CLI::PositiveNumber);
+                ->check(cli::finite_positive());
   integ->needs(h);
   h->needs(integ);
-  sub->add_option("--rate", c.rate, "control rate [Hz]")->check(CLI::PositiveNumber)->capture_default_str();
-  sub->add_option("--stair-scene", c.stair_scene, "box scene of stair and sweep (e.g. stair_grip)")
+  sub->add_option("--rate", c.rate, "control rate [Hz]")->check(cli::finite_positive())->capture_default_str();
+  sub->add_option("--stair-scene", c.stair_scene,
+                  "box scene of stair and sweep: a name in --scenes (e.g. stair_grip) or a path to a .yaml file")
       ->capture_default_str();
   sub->add_flag("--no-plots", c.no_plots, "write no figures");
   sub->add_flag("--quiet", c.quiet, "no progress bars");
@@ -92,32 +95,32 @@ int main(int argc, char** argv) {
 
   auto* flat = app.add_subcommand("flat", "average forward speed at μ = 0.82 and μ = 0.40");
   add_common(flat, c);
-  flat->add_option("--duration", duration, "simulated time per run [s]")->check(CLI::PositiveNumber)->capture_default_str();
+  flat->add_option("--duration", duration, "simulated time per run [s]")->check(cli::finite_positive())->capture_default_str();
 
   auto* fric = app.add_subcommand("friction", "head-joint SEA torque across the friction change (Fig. 7)");
   add_common(fric, c);
   fric->add_option("--duration", friction_duration, "simulated time [s] (default: the scene's)")
-      ->check(CLI::PositiveNumber);
+      ->check(cli::finite_positive());
 
   auto* stair = app.add_subcommand("stair", "k_c = 0 against k_c = 10.1 over the stair (Fig. 10)");
   add_common(stair, c);
-  stair->add_option("--duration", duration, "simulated time per run [s]")->check(CLI::PositiveNumber)->capture_default_str();
-  stair->add_option("--k_c", k_c, "adaptive gains to compare")->capture_default_str();
+  stair->add_option("--duration", duration, "simulated time per run [s]")->check(cli::finite_positive())->capture_default_str();
+  stair->add_option("--k_c", k_c, "adaptive gains to compare")->check(cli::finite_in(-1e3, 1e3))->capture_default_str();
   stair->add_option("--heights", heights, "box heights of the height scan [m] (none: --heights with no value)")
       ->expected(0, -1)->capture_default_str();
-  stair->add_option("--every", every, "snapshot spacing of the shape plots [s]")->check(CLI::PositiveNumber)
+  stair->add_option("--every", every, "snapshot spacing of the shape plots [s]")->check(cli::finite_positive())
       ->capture_default_str();
 
   auto* sweep = app.add_subcommand("sweep", "average speed over the stair against k_c (Fig. 9)");
   add_common(sweep, c);
   sweep->add_option("--from", sw.from, "first k_c")->capture_default_str();
   sweep->add_option("--to", sw.to, "last k_c")->capture_default_str();
-  sweep->add_option("--step", sw.step, "k_c step")->check(CLI::PositiveNumber)->capture_default_str();
-  sweep->add_option("--duration", sw.duration, "simulated time per run [s]")->check(CLI::PositiveNumber)
+  sweep->add_option("--step", sw.step, "k_c step")->check(cli::finite_positive())->capture_default_str();
+  sweep->add_option("--duration", sw.duration, "simulated time per run [s]")->check(cli::finite_positive())
       ->capture_default_str();
   sweep->add_option("--checks", sw.checks, "k_c values re-run at --check-h (0 = none)")->check(CLI::Range(0, 16))
       ->capture_default_str();
-  sweep->add_option("--check-h", sw.check_h, "finer step of the accuracy check [s]")->check(CLI::PositiveNumber)
+  sweep->add_option("--check-h", sw.check_h, "finer step of the accuracy check [s]")->check(cli::finite_positive())
       ->capture_default_str();
 
   auto* sens = app.add_subcommand("sensitivity", "how the results move with K and I_r (unpublished)");
@@ -125,33 +128,27 @@ int main(int argc, char** argv) {
   sens->add_option("--K", se.K, "SEA stiffness values [N·m/rad]")->capture_default_str();
   sens->add_option("--I_r", se.I_r, "rotor inertia values [kg·m²]")->capture_default_str();
   sens->add_flag("--no-model-options", no_model_options, "skip the friction-at-COM and v_s rows");
-  sens->add_option("--duration", duration, "flat and stair runs [s]")->check(CLI::PositiveNumber)->capture_default_str();
+  sens->add_option("--duration", duration, "flat and stair runs [s]")->check(cli::finite_positive())->capture_default_str();
   sens->add_option("--friction-duration", friction_duration, "friction runs [s] (default: the scene's)")
-      ->check(CLI::PositiveNumber);
+      ->check(cli::finite_positive());
 
   auto* all = app.add_subcommand("all", "everything, and DIR/paper_table.md");
   add_common(all, c);
   all->add_option("--duration", duration, "flat, stair, sweep and sensitivity runs [s]")
-      ->check(CLI::PositiveNumber)->capture_default_str();
+      ->check(cli::finite_positive())->capture_default_str();
   all->add_option("--friction-duration", friction_duration, "friction runs [s] (default: the scene's)")
-      ->check(CLI::PositiveNumber);
+      ->check(cli::finite_positive());
   all->add_option("--from", sw.from, "first k_c of the sweep")->capture_default_str();
   all->add_option("--to", sw.to, "last k_c of the sweep")->capture_default_str();
-  all->add_option("--step", sw.step, "k_c step of the sweep")->check(CLI::PositiveNumber)->capture_default_str();
+  all->add_option("--step", sw.step, "k_c step of the sweep")->check(cli::finite_positive())->capture_default_str();
   all->add_option("--checks", sw.checks, "k_c values re-run at --check-h")->check(CLI::Range(0, 16))
       ->capture_default_str();
-  all->add_option("--check-h", sw.check_h, "finer step of the accuracy check [s]")->check(CLI::PositiveNumber)
+  all->add_option("--check-h", sw.check_h, "finer step of the accuracy check [s]")->check(cli::finite_positive())
       ->capture_default_str();
   all->add_option("--K", se.K, "sensitivity: SEA stiffness values [N·m/rad]")->capture_default_str();
   all->add_option("--I_r", se.I_r, "sensitivity: rotor inertia values [kg·m²]")->capture_default_str();
 
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    if (e.get_exit_code() == 0) return app.exit(e);
-    std::cerr << "pedalwave_paper: error: " << e.what() << '\n';
-    return kExitBadInput;
-  }
+  if (const auto rc = cli::parse(app, argc, argv, "pedalwave_paper")) return *rc;
 
   paper::Settings s;
   try {
@@ -160,7 +157,7 @@ int main(int argc, char** argv) {
       throw std::invalid_argument("--h " + std::to_string(s.integ->h) +
                                   ": expected ≤ the control period 1/rate = " + std::to_string(1.0 / s.rate_hz) + " s");
     (void)paper::sweep_grid(sw.from, sw.to, sw.step);
-    if (const auto f = s.scenes_dir / (s.stair_scene + ".yaml"); !std::filesystem::exists(f))
+    if (const auto f = paper::scene_file(s, s.stair_scene); !std::filesystem::exists(f))
       throw std::invalid_argument("--stair-scene " + s.stair_scene + ": no scene file " + f.string());
     for (double K : se.K)
       if (!(K > 0)) throw std::invalid_argument("--K " + std::to_string(K) + ": expected > 0 [N·m/rad]");

@@ -53,6 +53,9 @@ struct Settings {
 };
 
 // Loads config/scenes/<name>.yaml from settings.scenes_dir.
+// The file of scene `name`: a path as given when it names a folder or ends in .yaml, else
+// <scenes_dir>/<name>.yaml.
+std::filesystem::path scene_file(const Settings& s, const std::string& name);
 model::Scene load(const Settings& s, const std::string& name);
 
 // The integrator a run of this scene uses: Settings::integ if set, else the scene's own.

@@ -5,6 +5,8 @@
 // residuals, forward speed, loop wake latency).
 #include <CLI/CLI.hpp>
 
+#include "pedalwave/toolkit/cli.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -106,7 +108,7 @@ int main(int argc, char** argv) {
   app.add_option("recording", prefix, "the --record file name given to pedalwave_monitor (e.g. run.csv)")->required();
   app.add_option("--out", out, "folder for the plots");
   app.add_option("--every", every, "snapshot period of the shape plot [s]")->check(CLI::PositiveNumber);
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_plot_recording")) return *rc;
   namespace tk = pedalwave::toolkit;
   namespace pm = pedalwave::model;
   try {

@@ -13,6 +13,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "pedalwave/toolkit/cli.hpp"
+
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -285,7 +287,7 @@ int main(int argc, char** argv) {
   app.add_flag("--sequential", o.sequential,
                "run cyclictest after our loop instead of at the same time (no mutual interference, "
                "but a different time window)");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_rtbench")) return *rc;
 
   std::printf("rtbench: %d s per phase at %.0f Hz, %s, cpu %d, mlockall %s, compute load %.1f us/cycle, %d joints\n",
               o.seconds, o.rate, o.priority > 0 ? ("SCHED_FIFO " + std::to_string(o.priority)).c_str() : "SCHED_OTHER",

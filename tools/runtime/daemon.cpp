@@ -1,5 +1,13 @@
 #include "daemon.hpp"
 
+#include <fcntl.h>
+#include <net/if.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
 #include <cmath>
 #include <exception>
 #include <cstdio>
@@ -298,6 +306,73 @@ int exit_code(const runtime::RunResult& r) noexcept {
   return kExitInternal;
 }
 
+std::string folder_problem(const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return "cannot create the folder (" + ec.message() + ")";
+  if (!std::filesystem::is_directory(dir, ec)) return "cannot create the folder (not a directory)";
+  const std::filesystem::path probe =
+      std::filesystem::path(dir) / (".pedalwave_write_probe_" + std::to_string(::getpid()));
+  {
+    std::ofstream f(probe);
+    f << "probe\n";
+    f.flush();
+    if (!f) {
+      std::filesystem::remove(probe, ec);
+      return "cannot write files in the folder (" + std::string(std::strerror(errno)) + ")";
+    }
+  }
+  std::filesystem::remove(probe, ec);
+  return "";
+}
+
+std::vector<CheckItem> preflight(const config::DaemonConfig& cfg, const DaemonOptions& opt) {
+  std::vector<CheckItem> items;
+  auto add = [&](bool ok, std::string what, std::string why) {
+    items.push_back({ok, std::move(what), ok ? std::string() : std::move(why)});
+  };
+  add(true, "configuration " + cfg.source + " (driver " + config::to_string(cfg.driver.kind) + ", " +
+                std::to_string(cfg.robot.N - 1) + " joints)", "");
+  const config::DriverSelection& d = cfg.driver;
+  if (d.kind == config::DriverKind::kSim) {
+    add(true, "simulated plant: scene " + d.scene_path + " loads", "");
+  } else if (d.kind == config::DriverKind::kSerial) {
+    // Opening the tty sends nothing; the driver's own open() configures it and talks to the bus.
+    const std::string what = "serial device " + d.serial.device + " exists and opens";
+    struct stat st {};
+    if (::stat(d.serial.device.c_str(), &st) != 0) {
+      add(false, what, std::strerror(errno));
+    } else if (!S_ISCHR(st.st_mode)) {
+      add(false, what, "not a character device");
+    } else {
+      const int fd = ::open(d.serial.device.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+      add(fd >= 0, what, fd >= 0 ? "" : std::strerror(errno));
+      if (fd >= 0) ::close(fd);
+    }
+  } else {
+    const std::string what = "CAN interface " + d.can.ifname + " exists";
+    add(::if_nametoindex(d.can.ifname.c_str()) != 0, what, "no such network interface");
+  }
+  if (cfg.telemetry.enabled && opt.telemetry)
+    add(::if_nametoindex(cfg.telemetry.interface.c_str()) != 0,
+        "DDS network interface " + cfg.telemetry.interface + " exists", "no such network interface");
+  if (!opt.plots_dir.empty()) {
+    const std::string why = folder_problem(opt.plots_dir);
+    add(why.empty(), "--plots " + opt.plots_dir + " is a writable folder", why);
+  }
+  if (!opt.report_json.empty()) {
+    const std::filesystem::path parent = std::filesystem::absolute(opt.report_json).parent_path();
+    const bool ok = ::access(parent.c_str(), W_OK) == 0 &&
+                    (!std::filesystem::exists(opt.report_json) || ::access(opt.report_json.c_str(), W_OK) == 0);
+    add(ok, "--report-json " + opt.report_json + " can be written", std::strerror(errno));
+  }
+  if (!opt.state_dir.empty()) {
+    const std::string why = folder_problem(opt.state_dir);
+    add(why.empty(), "--state-dir " + opt.state_dir + " is a writable folder", why);
+  }
+  return items;
+}
+
 DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& opt) {
   DaemonResult res;
   std::ostringstream log;
@@ -310,13 +385,9 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
     report.open(opt.report_json);
     if (!report) throw BadInput("--report-json " + opt.report_json + ": cannot open the file for writing");
   }
-  if (!opt.plots_dir.empty()) {  // likewise the plots' folder
-    std::error_code ec;
-    std::filesystem::create_directories(opt.plots_dir, ec);
-    if (ec || !std::filesystem::is_directory(opt.plots_dir))
-      throw BadInput("--plots " + opt.plots_dir + ": cannot create the folder (" +
-                     (ec ? ec.message() : std::string("not a directory")) + ")");
-  }
+  if (!opt.plots_dir.empty())  // likewise the plots' folder: created and written to now
+    if (const std::string why = folder_problem(opt.plots_dir); !why.empty())
+      throw BadInput("--plots " + opt.plots_dir + ": " + why);
 
   // The walking marker (run_marker.hpp): an earlier run's marker means it did not end in order;
   // this run then does not auto-start — it waits in READY for an operator's start command.

@@ -69,7 +69,23 @@ struct BadInput : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Throws BadInput (before the run) for an unusable report path or state folder.
+// Why the folder `dir` cannot take output files ("" = it can): created when missing, then a file
+// is written into it and removed (a folder that exists but is read-only, /proc, is refused).
+std::string folder_problem(const std::string& dir);
+
+// `pedalwave_runtime --check`: what can be checked without moving the robot. Each item is one
+// line "ok    <what>" or "FAIL  <what>: <why>".
+struct CheckItem {
+  bool ok = true;
+  std::string what;  // e.g. "serial device /dev/ttyUSB0 opens"
+  std::string why;   // the reason when !ok
+};
+// The configured device node exists and opens (serial), the CAN interface exists (socketcan), the
+// DDS network interface exists (telemetry on and `telemetry` true), and the output folders and
+// files of `opt` are writable (plots, report, state). Opens nothing that commands the robot.
+std::vector<CheckItem> preflight(const config::DaemonConfig& cfg, const DaemonOptions& opt);
+
+// Throws BadInput (before the run) for an unusable report path, plots folder or state folder.
 DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& opt);
 
 // The onboard observer as the daemon wires it: the configured robot (one stiffness per joint),

@@ -1,19 +1,23 @@
 // pedalwave_runtime: the runtime daemon. Loads a configuration (config/runtime/*.yaml), validates
-// everything before starting, runs the fixed-rate loop until the duration, SIGINT/SIGTERM, an
+// everything before starting, runs the fixed-rate loop until the duration, SIGINT/SIGTERM/SIGHUP/SIGQUIT, an
 // operator e-stop or a fault, and ends every exit with the driver's safe command. The exit status
 // says how the run ended (kExit* in daemon.hpp; the table is in the --help footer below).
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <cstdio>
+#include <optional>
+#include <sstream>
 #include <iostream>
 
 #include "daemon.hpp"
 #include "pedalwave/config/daemon.hpp"
+#include "pedalwave/toolkit/cli.hpp"
 
 namespace {
 constexpr const char* kExitTable =
     "Exit status (how the run ended; the systemd unit never restarts after 2, 4, 5):\n"
-    "  0  normal end: the duration reached, or an operator stop (SIGTERM/SIGINT)\n"
+    "  0  normal end: the duration reached, or an operator stop (SIGTERM/SIGINT/SIGHUP/SIGQUIT)\n"
     "  1  internal error (an exception outside the loop); under systemd: restarted, into READY\n"
     "  2  bad input: the configuration or the command line was refused\n"
     "  4  a fault ended the run (safe stop: torque off)\n"
@@ -21,6 +25,11 @@ constexpr const char* kExitTable =
     "  (3 is reserved for the simulation tools: a run that went numerically wrong)\n"
     "With --state-dir, a run that walked and did not end in order (crash, kill, power loss)\n"
     "leaves <dir>/running behind; the next run then stays READY until an operator start command.";
+namespace cli = pedalwave::toolkit::cli;
+static_assert(pedalwave::app::kExitBadInput == cli::kExitBadInput && pedalwave::app::kExitFault == cli::kExitFault &&
+              pedalwave::app::kExitEmergencyStop == cli::kExitEmergencyStop &&
+              pedalwave::app::kExitInternal == cli::kExitInternal);
+constexpr const char* kTool = "pedalwave_runtime";
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -28,8 +37,8 @@ int main(int argc, char** argv) {
   CLI::App cli{"pedalwave runtime daemon: read → observe → control → write at a fixed rate"};
   cli.footer(kExitTable);
   std::string config_path, plots_dir, report_json, state_dir;
-  double duration = -1.0;
-  bool check_only = false, no_telemetry = false;
+  std::optional<double> duration;
+  bool check_only = false, check_config = false, no_telemetry = false;
   cli.add_option("-c,--config", config_path, "daemon configuration (YAML)")->required();
   cli.add_option("-d,--duration", duration, "override the run time [s] (0 = until a signal)");
   cli.add_option("--plots", plots_dir, "write plots of the run into this folder: runtime_signals.svg, observer.svg, cycles.csv (any driver); snake_shapes, paths, speed (simulated plant)");
@@ -38,28 +47,44 @@ int main(int argc, char** argv) {
   cli.add_option("--state-dir", state_dir,
                  "keep the walking marker here (the unit: /var/lib/pedalwave); a marker left by "
                  "a run that did not end in order keeps this run in READY (no auto-start)");
-  cli.add_flag("--check", check_only, "validate the configuration and exit");
+  cli.add_flag("--check", check_only,
+               "validate the configuration and check what can be checked without moving the robot "
+               "(device node opens, CAN and DDS interfaces exist, output folders writable), then exit");
+  cli.add_flag("--check-config", check_config,
+               "validate the configuration file only (no devices, interfaces or folders: a build or "
+               "packaging machine without the robot), then exit");
   cli.add_flag("--no-telemetry", no_telemetry, "do not start DDS telemetry");
-  try {
-    cli.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int rc = cli.exit(e);
-    return rc == 0 ? app::kExitNormal : app::kExitBadInput;
-  }
+  if (const auto rc = cli::parse(cli, argc, argv, kTool)) return *rc;
 
   pedalwave::config::DaemonConfig cfg;
   try {
     cfg = pedalwave::config::load_daemon_config(config_path);
-    if (duration >= 0) {
-      cfg.duration = duration;
-      cfg.runtime.max_cycles =
-          duration > 0 ? static_cast<std::uint64_t>(duration * cfg.runtime.rt.rate_hz + 0.5) : 0;
-    }
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "configuration error: %s\n", e.what());
-    return app::kExitBadInput;
+    return cli::bad_input(kTool, e.what());
   }
-  if (check_only) {
+  if (duration) {  // nan, inf, negative, 1e308 and less than one period are refused
+    if (const std::string why = pedalwave::config::duration_problem(*duration, cfg.runtime.rt.rate_hz);
+        !why.empty()) {
+      std::ostringstream os;
+      os << "--duration " << *duration << ": expected " << why;
+      return cli::bad_input(kTool, os.str());
+    }
+    cfg.duration = *duration;
+    cfg.runtime.max_cycles =
+        *duration > 0 ? static_cast<std::uint64_t>(std::llround(*duration * cfg.runtime.rt.rate_hz)) : 0;
+  }
+  app::DaemonOptions opt;
+  opt.plots_dir = plots_dir;
+  opt.telemetry = !no_telemetry;
+  opt.report_json = report_json;
+  opt.state_dir = state_dir;
+  if (check_only || check_config) {
+    bool all_ok = true;
+    for (const app::CheckItem& c : check_only ? app::preflight(cfg, opt) : std::vector<app::CheckItem>{}) {
+      all_ok &= c.ok;
+      std::printf("%s  %s%s%s\n", c.ok ? "ok  " : "FAIL", c.what.c_str(), c.ok ? "" : ": ", c.why.c_str());
+    }
+    if (!all_ok) return cli::bad_input(kTool, config_path + ": --check failed (the FAIL lines above)");
     std::printf("%s: configuration valid (driver %s, %g Hz, %d joints, %s)\n", config_path.c_str(),
                 pedalwave::config::to_string(cfg.driver.kind), cfg.runtime.rt.rate_hz,
                 cfg.robot.N - 1,
@@ -68,18 +93,12 @@ int main(int argc, char** argv) {
     return app::kExitNormal;
   }
   try {
-    app::DaemonOptions opt;
-    opt.plots_dir = plots_dir;
-    opt.telemetry = !no_telemetry;
-    opt.report_json = report_json;
-    opt.state_dir = state_dir;
     const auto r = app::run_daemon(cfg, opt);
     return app::exit_code(r.run);
   } catch (const app::BadInput& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
-    return app::kExitBadInput;
+    return cli::bad_input(kTool, e.what());
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "%s: error: %s\n", kTool, e.what());
     return app::kExitInternal;
   }
 }

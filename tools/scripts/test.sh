@@ -32,7 +32,7 @@ step "[2/4] ctest under ASan+UBSan (without label slow)"
    ctest --output-on-failure -j"$jobs" --timeout 900 -LE "slow|vcan") ||
   { bash tools/scripts/ctest-digest.sh build/asan; exit 1; }
 
-step "[3/4] fuzzing the protocol decoders (libFuzzer, 10 s each)"
+step "[3/4] fuzzing the protocol decoders and the YAML readers (libFuzzer, 10 s each)"
 bash tools/scripts/fuzz.sh 10
 
 step "[4/4] real SocketCAN: ctest -L vcan inside the qemu VM (vcan0)"

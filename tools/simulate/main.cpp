@@ -14,35 +14,22 @@
 #include <fstream>
 #include <iostream>
 #include <optional>
+#include <sstream>
 #include <string>
 
 #include "pedalwave/config/scene.hpp"
+#include "pedalwave/model/stability.hpp"
+#include "pedalwave/toolkit/cli.hpp"
 #include "sim_run.hpp"
 
 namespace {
 
-constexpr int kExitBadInput = 2;
-constexpr int kExitPlantFailed = 3;
+namespace cli = pedalwave::toolkit::cli;
+constexpr const char* kTool = "pedalwave_sim";
 
-int bad_input(const std::string& what) {
-  std::cerr << "pedalwave_sim: error: " << what << '\n';
-  return kExitBadInput;
-}
+int bad_input(const std::string& what) { return cli::bad_input(kTool, what); }
 
-// "a number > 0" with a short message (CLI::PositiveNumber prints the whole double range).
-const CLI::Validator kPositive(
-    [](std::string& text) -> std::string {
-      double v = 0.0;
-      try {
-        std::size_t used = 0;
-        v = std::stod(text, &used);
-        if (used != text.size()) return "'" + text + "': expected a number > 0";
-      } catch (const std::exception&) {
-        return "'" + text + "': expected a number > 0";
-      }
-      return v > 0 && std::isfinite(v) ? std::string{} : text + ": expected a number > 0";
-    },
-    "> 0", "positive");
+const CLI::Validator kPositive = cli::finite_positive();
 
 }  // namespace
 
@@ -68,38 +55,45 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"none", "gait"}))
       ->capture_default_str();
   app.add_option("--k_c", k_c, "adaptive admittance gain k_c (0 = open-loop gait)")
+      ->check(cli::finite_in(-1e3, 1e3))
       ->capture_default_str();
   app.add_option("--rate", rate, "control rate [Hz]")->check(kPositive)->capture_default_str();
   app.add_option("--integrator", integrator,
                  "euler | semi_implicit_euler | implicit_velocity | rk4 | dopri45 (default: the scene's)");
-  app.add_option("--h", h, "integrator step (initial step for dopri45) [s]")->check(kPositive);
-  app.add_option("--rtol", rtol, "relative tolerance of dopri45")->check(kPositive);
+  app.add_option("--h", h, "integrator step (initial step for dopri45) [s], ≤ the control period")
+      ->check(cli::finite_in(1e-7, 0.1));
+  app.add_option("--rtol", rtol, "relative tolerance of dopri45 (only with dopri45)")->check(cli::finite_in(1e-14, 1));
   app.add_option("--out", out, "output folder (default: sim_out/<scene name>)");
   app.add_option("--every", every, "CSV/plot sample period [s], a multiple of 1/rate")
       ->check(kPositive)
       ->capture_default_str();
   app.add_flag("--no-plots", no_plots, "write no figures");
   app.add_flag("--quiet", quiet, "no progress bar, no printed summary");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::CallForAllHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    return bad_input(std::string(e.what()) + " (see --help)");
-  }
+  if (const auto rc = cli::parse(app, argc, argv, kTool)) return *rc;
 
   // Scene and overrides: every problem here is bad input (exit 2, one line).
   sim::RunConfig cfg;
   try {
-    cfg.scene = pedalwave::config::load_scene(scene_path);
+    // pedalwave_sim injects no faults: a scene with a faults: list is refused, not run fault-free.
+    cfg.scene = pedalwave::config::load_scene(scene_path, {.faults = false, .consumer = kTool});
     if (cfg.scene.source.empty()) cfg.scene.source = scene_path;
     if (duration) cfg.scene.duration = *duration;
     cfg.integ = cfg.scene.integrator;
     if (integrator) cfg.integ.method = model::parse_method(*integrator);
     if (h) cfg.integ.h = *h;
+    if (rtol && !model::is_adaptive(cfg.integ.method))
+      throw std::invalid_argument("--rtol " + std::to_string(*rtol) + ": expected --integrator dopri45 (the "
+                                  "tolerance of the adaptive method; the integrator is " +
+                                  std::string(model::to_string(cfg.integ.method)) + ")");
     if (rtol) cfg.integ.rtol = *rtol;
+    // The plant advances one control period per step of the loop: a longer step is never taken
+    // (the summary would say h = 10 s while 1 ms steps ran).
+    if (!model::is_adaptive(cfg.integ.method) && cfg.integ.h > (1.0 / rate) * (1 + 1e-9)) {
+      std::ostringstream os;
+      os << (h ? "--h " : cfg.scene.source + ": integrator.h = ") << cfg.integ.h
+         << ": expected a step ≤ the control period 1/rate = " << 1.0 / rate << " s";
+      throw std::invalid_argument(os.str());
+    }
     model::validate(cfg.integ);
     model::validate(cfg.scene);
     cfg.loop.rate_hz = rate;
@@ -119,7 +113,21 @@ int main(int argc, char** argv) {
 
   try {
     const sim::RunResult r = sim::run(cfg);
-    const std::string summary = sim::summary_text(cfg, r);
+    const bool failed = r.status != model::StepStatus::kOk;
+    std::string summary = sim::summary_text(cfg, r);
+    // A run that went numerically wrong: the stability limit of the scene's fastest mode and a
+    // step that would work (model/stability), in the summary and on stderr.
+    std::string advice;
+    if (failed) {
+      try {
+        const auto gains = cfg.loop.controller ? model::ControlGains{} : model::ControlGains{0.0, 0.0};
+        const model::StabilityCheck chk = model::check(cfg.scene, gains, cfg.integ, cfg.scene.duration);
+        advice = model::stability_message(chk.report, cfg.integ.method, cfg.integ.h);
+      } catch (const std::exception& e) {
+        advice = std::string("no stability prediction: ") + e.what();
+      }
+      summary += "stability:        " + advice + "\n";
+    }
     {
       std::ofstream f(cfg.out_dir / "summary.txt");
       f << summary;
@@ -129,15 +137,15 @@ int main(int argc, char** argv) {
     if (cfg.plots)
       for (const std::string& line : sim::write_plots(cfg, r))
         if (!quiet) std::cout << "figure:           " << line << '\n';
-    if (r.status != model::StepStatus::kOk) {
+    if (failed) {
       std::cerr << "pedalwave_sim: the plant failed at t = " << r.t_end << " s: "
                 << model::to_string(r.status) << " (rows up to then are in " << r.csv.string()
-                << ")\n";
-      return kExitPlantFailed;
+                << "); " << advice << '\n';
+      return cli::kExitNumerical;
     }
   } catch (const std::exception& e) {
     std::cerr << "pedalwave_sim: error: " << e.what() << '\n';
-    return EXIT_FAILURE;
+    return cli::kExitInternal;
   }
-  return EXIT_SUCCESS;
+  return cli::kExitOk;
 }

@@ -181,9 +181,10 @@ std::vector<std::string> write_plots(const RunConfig& c, const RunResult& r) {
                             .y = moving_average(v_cms, static_cast<std::size_t>(std::lround(cycle / dt))),
                             .color = tk::Color{31, 119, 180}, .width_px = 2.0});
     }
-    pv.signals.push_back({.label = "average " + fmt(100.0 * r.avg_speed) + " cm/s",
-                          .y = std::vector<double>(v_cms.size(), 100.0 * r.avg_speed),
-                          .color = tk::colors::red, .dash = tk::Dash::dashed});
+    if (r.status == model::StepStatus::kOk)  // a failed run has no meaningful average speed
+      pv.signals.push_back({.label = "average " + fmt(100.0 * r.avg_speed) + " cm/s",
+                            .y = std::vector<double>(v_cms.size(), 100.0 * r.avg_speed),
+                            .color = tk::colors::red, .dash = tk::Dash::dashed});
     std::vector<tk::SignalPanel> panels{px, pv};
     tk::TimeSeriesOptions opt;
     opt.title = "Forward progress" + title_tail;

@@ -168,8 +168,15 @@ RunResult run(const RunConfig& c) {
   };
 
   r.e_initial = r.e_min = r.e_max = r.e_final = plant.energy(sim.q(), sim.v());
+  if (c.scene.ground_on) {
+    model::update_kinematics(m, dd, sim.q(), sim.v());
+    for (int k = 0; k < P; ++k) {
+      const double depth = c.scene.ground.z - model::point_position(m, dd, sim.q(), k).y();
+      if (depth > 0) r.e_ground_initial += 0.5 * c.scene.ground.k * depth * depth;
+    }
+  }
   plant.report(sim.q(), sim.v(), rep);
-  r.max_penetration = rep.max_penetration;
+  r.max_penetration = r.max_penetration_initial = rep.max_penetration;
   double com_x_from = 0.0;
 
   toolkit::Progress progress(
@@ -244,10 +251,17 @@ std::string summary_text(const RunConfig& c, const RunResult& r) {
   os << '\n';
   os << "run:              " << (ok ? "completed" : "STOPPED") << " at t = " << r.t_end << " s of "
      << c.scene.duration << " s (" << model::to_string(r.status) << ")\n";
-  os << "forward speed:    " << r.avg_speed * 100.0 << " cm/s average (COM x, t = " << r.avg_from
-     << " … " << (ok ? r.t_end : (r.t.empty() ? 0.0 : r.t.back())) << " s)\n";
+  if (ok)
+    os << "forward speed:    " << r.avg_speed * 100.0 << " cm/s average (COM x, t = " << r.avg_from
+       << " … " << r.t_end << " s)\n";
+  else  // the state before a blow-up is already wrong: a speed from it would be meaningless
+    os << "forward speed:    none (the run went numerically wrong)\n";
   os << "energy [J]:       initial " << r.e_initial << (ok ? ", final " : ", last good ") << r.e_final << ", min "
-     << r.e_min << ", max " << r.e_max << " (kinetic + gravity + spring)\n";
+     << r.e_min << ", max " << r.e_max << " (kinetic + gravity + spring)";
+  if (r.e_ground_initial > 0)
+    os << "; " << r.e_ground_initial << " J more stored in the ground at t = 0 (the start is "
+       << r.max_penetration_initial * 1000.0 << " mm inside it)";
+  os << "\n";
   os << "work [J]:         motors " << r.w_motor << ", dissipated " << r.w_motor - (r.e_final - r.e_initial)
      << " (= motor work − ΔE: contact damping, friction";
   if (c.scene.joint_friction_on) os << ", joint friction " << r.w_joint_friction;

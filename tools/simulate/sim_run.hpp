@@ -58,9 +58,13 @@ struct RunResult {
   double avg_speed = 0.0;         // (com_x(T) − com_x(t0)) / (T − t0) [m/s]
   double avg_from = 0.0;          // t0: 1 s, or 0 when the run is not longer than 1 s [s]
   double e_initial = 0.0, e_final = 0.0, e_min = 0.0, e_max = 0.0;  // mechanical energy [J]
+  // Elastic energy in the ground at t = 0, Σ_k ½ k δ_k² over the body points below ground.z [J]
+  // (not part of the mechanical energy above: a start in penetration releases it).
+  double e_ground_initial = 0.0;
   double w_motor = 0.0;           // ∫ u_act · (motor rates) dt, trapezoid per control period [J]
   double w_joint_friction = 0.0;  // ∫ b β̇² dt dissipated in the motor bearings [J]
   double max_penetration = 0.0;   // deepest penetration over all control periods [m]
+  double max_penetration_initial = 0.0;  // deepest penetration at t = 0 [m]
   model::IntegratorStats stats;   // plant integrator counters
   double wall_s = 0.0;            // wall time of the simulation loop [s]
   std::filesystem::path csv;      // where the trajectory went

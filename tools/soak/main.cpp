@@ -9,6 +9,8 @@
 // Exit codes: 0 the run reached its duration with no fault event; 1 otherwise (fault, early exit,
 // no report, interrupted); 2 bad option, file or configuration (the message names it).
 #include <CLI/CLI.hpp>
+
+#include "pedalwave/toolkit/cli.hpp"
 #include <fcntl.h>
 #include <sched.h>
 #include <signal.h>
@@ -495,12 +497,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 99))
       ->capture_default_str();
   app.add_flag("--no-plot", opt.no_plot, "do not draw soak.png");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int rc = app.exit(e);
-    return rc == 0 ? 0 : sk::kExitUsage;
-  }
+  if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_soak")) return *rc;
   if (opt.duty <= 0.0) {
     std::cerr << "pedalwave_soak: error: --load-duty " << opt.duty << ": expected a fraction in (0, 1]\n";
     return sk::kExitUsage;

@@ -18,6 +18,8 @@
 // faults injected, plant time, COM distance) at exit. Exit codes: 0 done; 2 bad input (scene,
 // option); 1 the transport could not be opened (e.g. no PF_CAN on this kernel).
 #include <CLI/CLI.hpp>
+
+#include "pedalwave/toolkit/cli.hpp"
 #include <unistd.h>
 
 #include <algorithm>
@@ -115,12 +117,7 @@ int main(int argc, char** argv) {
                  "host's CPU)")->check(CLI::Range(0, 99))->capture_default_str();
   app.add_option("--cpu", cpu, "pin the modules' thread to this CPU (−1 = no pinning)")
       ->check(CLI::Range(-1, 1023))->capture_default_str();
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int rc = app.exit(e);  // prints the help or the error
-    return rc == 0 ? 0 : 2;
-  }
+  if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_virtual_robot")) return *rc;
   if (can_if.empty() && !pty) return bad_input("give the bus: --can IFNAME [--fd] or --pty");
   if (fd && pty) return bad_input("--fd is a CAN option; the serial bus (--pty) has no FD frames");
 

@@ -12,6 +12,8 @@
 // 1e-2) vs tanh vs stick–slip friction on the flat and stair scenes: forward speed and cost.
 #include <CLI/CLI.hpp>
 
+#include "pedalwave/toolkit/cli.hpp"
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -458,7 +460,7 @@ int main(int argc, char** argv) {
   app.add_flag("--quick", opt.quick, "a few points per method (smoke test)");
   app.add_flag("--fidelity", opt.fidelity, "model-fidelity study instead of the work-precision study");
   app.add_flag("--quiet", opt.quiet, "no progress bar");
-  CLI11_PARSE(app, argc, argv);
+  if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_workprec")) return *rc;
   if (opt.scenes.empty()) {
     if (opt.fidelity)
       opt.scenes = {dir + "/flat_high_friction.yaml", dir + "/stair.yaml"};

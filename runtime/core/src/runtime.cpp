@@ -51,7 +51,9 @@ void install_stop_signal_handlers() {
   sa.sa_handler = pedalwave_on_stop_signal;
   sigemptyset(&sa.sa_mask);
   sa.sa_flags = 0;  // no SA_RESTART: clock_nanosleep returns EINTR and the loop looks at the flag
-  for (int sig : {SIGINT, SIGTERM}) {
+  // SIGHUP (the terminal closed) and SIGQUIT (Ctrl-\\) would otherwise kill the process without
+  // the safe command: they end the run like SIGTERM.
+  for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) {
     if (sigaction(sig, &sa, nullptr) != 0)
       throw std::system_error(errno, std::generic_category(), "sigaction(" + std::to_string(sig) + ")");
   }

@@ -62,6 +62,13 @@ struct DaemonConfig {
   std::string log_file;               // events log; empty = stderr
 };
 
+inline constexpr double kMaxDuration = 1e7;  // longest run a file or --duration may ask for [s]
+
+// Why `duration` [s] is no run time at `rate_hz`, as the "expected …" of a message ("" = fine):
+// finite, in [0, kMaxDuration], and 0 (until a signal) or at least one period (less would round to
+// 0 cycles, which means "forever").
+std::string duration_problem(double duration, double rate_hz);
+
 DaemonConfig load_daemon_config(const std::string& path);
 DaemonConfig parse_daemon_config(const std::string& text, const std::string& name,
                                  const std::string& base_dir);

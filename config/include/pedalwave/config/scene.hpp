@@ -11,6 +11,14 @@
 namespace pedalwave::config {
 
 model::Scene load_scene(const std::string& path);
+// What the program that loads the scene makes of it: a tool that does not inject faults refuses
+// a scene with a `faults:` list (file:line: faults = [list]: expected no faults: list (...)),
+// rather than running it as if nothing failed.
+struct SceneUse {
+  bool faults = true;    // the program injects the scene's faults
+  std::string consumer;  // its name, for the message
+};
+model::Scene load_scene(const std::string& path, const SceneUse& use);
 model::Scene parse_scene(const std::string& text, const std::string& name);
 model::Scene read_scene(const Reader& r);
 

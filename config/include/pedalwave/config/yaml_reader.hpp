@@ -1,7 +1,9 @@
 // Reading YAML into parameter structs with errors a person can act on: every failure names the
 // file, the line, the full key path, the value found and what was expected, e.g.
 //   config/scenes/stair.yaml:12:7: ground.mu = "high": expected a number >= 0
-// Unknown keys are errors too (a typo must not silently fall back to a default).
+// Unknown keys are errors too (a typo must not silently fall back to a default), and so are
+// duplicate keys at any depth (block or flow maps: `{N: 6, N: 40}`), an empty file, and a path
+// that is not a regular file of at most kMaxFileBytes (a directory, /dev/zero, a pipe).
 #pragma once
 
 #include <functional>
@@ -15,16 +17,25 @@
 
 namespace pedalwave::config {
 
+// The text of a message on one line: control characters (a quoted key or value may hold a
+// newline, "durat\n") are written as escapes, \n \r \t \xNN.
+std::string one_line(const std::string& text);
+
+// Every configuration error; its message is always one line (one_line).
 class ConfigError : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  explicit ConfigError(const std::string& what) : std::runtime_error(one_line(what)) {}
 };
+
+inline constexpr std::size_t kMaxFileBytes = 1u << 20;  // configuration files are small [bytes]
 
 class Reader {
  public:
-  // Loads a file (throws ConfigError naming the file on I/O or syntax errors).
+  // Loads a file (throws ConfigError naming the file on I/O or syntax errors, a file that is not
+  // a regular file or is larger than kMaxFileBytes, an empty document, or a duplicate key).
   static Reader load_file(const std::string& path);
-  // Parses text (for tests and inline scenes); `name` stands for the file in messages.
+  // Parses text (for tests and inline scenes); `name` stands for the file in messages. Empty text
+  // is an empty map here (inline scenes may be empty); duplicate keys are errors.
   static Reader parse(const std::string& text, const std::string& name);
 
   Reader(YAML::Node node, std::string file, std::string path);
@@ -53,6 +64,13 @@ class Reader {
   long long integer(const std::string& key, long long def, long long lo, long long hi) const;
   bool boolean(const std::string& key, bool def) const;
   std::string string(const std::string& key, const std::string& def) const;
+  // A finite number within [lo, hi] (lo excluded when lo_open), e.g. robot.K in (0, 1e6]; `unit`
+  // is shown in the message ("expected a number in (0, 1e+06] [N·m/rad]").
+  double bounded(const std::string& key, double def, double lo, double hi, const char* unit,
+                 bool lo_open = false) const;
+  // The same for a number or a list of numbers (every element checked, by its index).
+  std::vector<double> bounded_numbers(const std::string& key, double lo, double hi,
+                                      const char* unit, bool lo_open = false) const;
   // One of the given words.
   std::string choice(const std::string& key, const std::string& def,
                      std::initializer_list<const char*> allowed) const;

@@ -7,7 +7,7 @@
 //   cfg.rt = {.rate_hz = 1000, .priority = 80, .cpu = 1, .lock_memory = true,
 //             .prefault_stack_bytes = 256 * 1024};
 //   auto rt = std::make_unique<Runtime>(cfg, driver, controller, &observer);  // ~6 MB: heap
-//   pedalwave::runtime::install_stop_signal_handlers();                       // SIGINT, SIGTERM
+//   pedalwave::runtime::install_stop_signal_handlers();   // SIGINT, SIGTERM, SIGHUP, SIGQUIT
 //   TelemetryConsumer consumer(*rt, {&dds_sink});   // non-RT thread: drains rings, logs events
 //   consumer.start();
 //   RunResult r;
@@ -90,7 +90,7 @@ struct RunResult {
   std::uint64_t event_drops = 0;         // EventSamples dropped (ring full) [-]
 };
 
-// Process-wide stop flag set by SIGINT/SIGTERM (async-signal-safe: a lock-free atomic store).
+// Process-wide stop flag set by SIGINT/SIGTERM/SIGHUP/SIGQUIT (async-signal-safe: a lock-free atomic store).
 void install_stop_signal_handlers();
 int pending_stop_signal() noexcept;   // 0 = none, else the signal number
 void clear_stop_signal() noexcept;    // tests only

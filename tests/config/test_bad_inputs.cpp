@@ -1,0 +1,307 @@
+// Bad input in the YAML files (issue 15): every documented key of a scene and of a daemon
+// configuration refuses a wrong type, a value out of its range and a repeated key, each with one
+// line naming the file, line, key, value and what was expected
+// (`bad.yaml:3:6: ground.k = "1e308": expected a number in (0, 1e+07] [N/m]`). A table drives it:
+// one row per key, its YAML with `@` where the value goes.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "pedalwave/config/daemon.hpp"
+#include "pedalwave/config/scene.hpp"
+
+using namespace pedalwave;
+using config::ConfigError;
+
+namespace {
+
+struct KeyRow {
+  std::string path;       // the key path the message must name
+  std::string yaml;       // the file, `@` where the value goes (on its own line)
+  std::string good;       // a value the key accepts
+  std::string bad_type;   // a value of the wrong type
+  std::string bad_range;  // a value of the right type, out of its range ("" = no range)
+  std::string expected;   // what the range message says it expected
+};
+
+std::string with(const std::string& yaml, const std::string& v) {
+  std::string s = yaml;
+  s.replace(s.find('@'), 1, v);
+  return s;
+}
+// 1-based line of the `@`.
+int line_of_value(const std::string& yaml) {
+  return 1 + static_cast<int>(std::count(yaml.begin(), yaml.begin() + static_cast<long>(yaml.find('@')), '\n'));
+}
+// The same file with the `@` line given twice (the second one is the duplicate).
+std::string duplicated(const std::string& yaml, const std::string& v) {
+  const std::size_t at = yaml.find('@');
+  const std::size_t b = yaml.rfind('\n', at) + 1;  // npos + 1 = 0 on the first line
+  const std::size_t e = yaml.find('\n', at);
+  const std::string line = yaml.substr(b, e - b + 1);
+  std::string s = yaml;
+  s.insert(b, line);
+  return with(with(s, v), v);
+}
+
+template <class F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+std::string scene_error(const std::string& yaml) {
+  return error_of([&] { config::parse_scene(yaml, "bad.yaml"); });
+}
+std::string daemon_error(const std::string& yaml) {
+  return error_of([&] { config::parse_daemon_config(yaml, "bad.yaml", PEDALWAVE_CONFIG_DIR "/runtime"); });
+}
+
+bool one_line(const std::string& e) { return e.find('\n') == std::string::npos; }
+
+// Runs the three checks of one row with `error` (scene or daemon).
+template <class E>
+void check_row(const KeyRow& k, E&& error) {
+  SCOPED_TRACE(k.path);
+  const std::string at = "bad.yaml:" + std::to_string(line_of_value(k.yaml)) + ":";
+  EXPECT_EQ(error(with(k.yaml, k.good)), "(no error)") << "the good value " << k.good;
+  std::string e = error(with(k.yaml, k.bad_type));
+  EXPECT_EQ(e.rfind(at, 0), 0u) << e;
+  const std::string shown = k.bad_type[0] == '[' ? "[list]" : k.bad_type[0] == '{' ? "{map}" : "\"" + k.bad_type + "\"";
+  EXPECT_NE(e.find(k.path + " = " + shown + ": expected "), std::string::npos) << e;
+  EXPECT_TRUE(one_line(e)) << e;
+  if (!k.bad_range.empty()) {
+    e = error(with(k.yaml, k.bad_range));
+    EXPECT_EQ(e.rfind(at, 0), 0u) << e;
+    EXPECT_NE(e.find(k.path + " = \"" + k.bad_range + "\": expected " + k.expected), std::string::npos) << e;
+    EXPECT_TRUE(one_line(e)) << e;
+  }
+  // The duplicate is reported where it stands: the line after the first.
+  e = error(duplicated(k.yaml, k.good));
+  const std::string dup_at = "bad.yaml:" + std::to_string(line_of_value(k.yaml) + 1) + ":";
+  EXPECT_EQ(e.rfind(dup_at, 0), 0u) << e;
+  EXPECT_NE(e.find(k.path + " = \"" + k.good + "\": expected each key once"), std::string::npos) << e;
+  EXPECT_TRUE(one_line(e)) << e;
+}
+
+const std::vector<KeyRow> kSceneKeys = {
+    {"robot.N", "robot:\n  N: @\n", "8", "six", "1", "an integer in [2, 64]"},
+    {"robot.m_l", "robot:\n  m_l: @\n", "0.2", "heavy", "0", "a number in (0, 1000] [kg]"},
+    {"robot.link_length", "robot:\n  link_length: @\n", "0.08", "long", "1e300", "a number in (0, 10] [m]"},
+    {"robot.I_l", "robot:\n  I_l: @\n", "1e-4", "[1, 2]", "-1", "a number in (0, 1000]"},
+    {"robot.m_r", "robot:\n  m_r: @\n", "0.03", "x", "-0.1", "a number in [0, 1000] [kg]"},
+    {"robot.I_r", "robot:\n  I_r: @\n", "1e-7", "x", "5", "a number in [0, 1]"},
+    {"robot.n", "robot:\n  n: @\n", "100", "x", "0", "a number in (0, 100000]"},
+    {"robot.K", "robot:\n  K: @\n", "5", "stiff", "1e308", "a number in (0, 1e+06] [N·m/rad]"},
+    {"robot.g", "robot:\n  g: @\n", "3.7", "x", "-9.81", "a number in [0, 100]"},
+    {"robot.joints", "robot:\n  joints: @\n", "rigid", "[1]", "elastic", "one of flexible, rigid"},
+    {"robot.rigid_variant", "robot:\n  joints: rigid\n  rigid_variant: @\n", "paper", "[1]", "printed",
+     "one of exact_limit, paper"},
+    {"ground.z", "ground:\n  z: @\n", "0.1", "low", "1e300", "a number in [-1000, 1000] [m]"},
+    {"ground.k", "ground:\n  k: @\n", "1000", "soft", "1e308", "a number in (0, 1e+07] [N/m]"},
+    {"ground.d", "ground:\n  d: @\n", "10", "x", "-1", "a number in [0, 100000]"},
+    {"ground.mu", "ground:\n  mu: @\n", "0.5", "high", "-1", "a number in [0, 10]"},
+    {"ground.friction", "ground:\n  friction: @\n", "tanh", "[1]", "sticky", "one of coulomb, regularized, tanh, stick_slip"},
+    {"ground.v_s", "ground:\n  v_s: @\n", "0.01", "x", "0", "a number in (0, 10]"},
+    {"ground.k_t", "ground:\n  k_t: @\n", "500", "x", "-5", "a number in (0, 1e+08]"},
+    {"ground.friction_at_com", "ground:\n  friction_at_com: @\n", "true", "maybe", "", ""},
+    {"ground.patches[0].x_begin", "ground:\n  patches:\n    - mu: 0.4\n      x_begin: @\n", "0.3", "far",
+     "1e300", "a number in [-10000, 10000] [m]"},
+    {"ground.patches[0].mu", "ground:\n  patches:\n    - x_begin: 0.3\n      mu: @\n", "0.4", "x", "-0.4",
+     "a number in [0, 10]"},
+    {"obstacles[0].x_near", "ground: {}\nobstacles:\n  - width: 0.1\n    x_near: @\n", "0.2", "near", "nan",
+     "a number in [-10000, 10000] [m]"},
+    {"obstacles[0].ahead_of_head", "ground: {}\nobstacles:\n  - width: 0.1\n    ahead_of_head: @\n", "0.05",
+     "x", "inf", "a number in [-10000, 10000]"},
+    {"obstacles[0].width", "ground: {}\nobstacles:\n  - x_near: 0.2\n    width: @\n", "0.1", "wide", "0",
+     "a number in (0, 1000] [m]"},
+    {"obstacles[0].height", "ground: {}\nobstacles:\n  - x_near: 0.2\n    height: @\n", "0.05", "x", "20",
+     "a number in (0, 10] [m]"},
+    {"obstacles[0].mu", "ground: {}\nobstacles:\n  - x_near: 0.2\n    mu: @\n", "0.5", "x", "11", "a number in [0, 10]"},
+    {"obstacles[0].edge_mu", "ground: {}\nobstacles:\n  - x_near: 0.2\n    edge_mu: @\n", "1.5", "x", "-1",
+     "a number in [0, 10]"},
+    {"obstacles[0].corner_contact", "ground: {}\nobstacles:\n  - x_near: 0.2\n    corner_contact: @\n", "false",
+     "sometimes", "", ""},
+    {"obstacles[0].type", "ground: {}\nobstacles:\n  - x_near: 0.2\n    type: @\n", "box", "[1]", "sphere", "one of box"},
+    {"joint_friction.motor_viscous", "joint_friction:\n  motor_viscous: @\n", "0.01", "x", "-1",
+     "a number in [0, 1000]"},
+    {"torque_limit.u_max", "torque_limit:\n  u_max: @\n", "1", "x", "0", "a number in (0, 10000] [N·m]"},
+    {"sensor_noise.beta_sigma", "sensor_noise:\n  beta_sigma: @\n", "1e-3", "x", "-1", "a number in [0, 10] [rad]"},
+    {"sensor_noise.beta_dot_sigma", "sensor_noise:\n  beta_dot_sigma: @\n", "1e-2", "x", "1e9", "a number in [0, 1000]"},
+    {"sensor_noise.deflection_sigma", "sensor_noise:\n  deflection_sigma: @\n", "1e-3", "x", "-1", "a number in [0, 10]"},
+    {"sensor_noise.encoder_resolution", "sensor_noise:\n  encoder_resolution: @\n", "1e-3", "x", "2", "a number in [0, 1]"},
+    {"sensor_noise.deflection_resolution", "sensor_noise:\n  deflection_resolution: @\n", "1e-3", "x", "-2",
+     "a number in [0, 1]"},
+    {"sensor_noise.seed", "sensor_noise:\n  seed: @\n", "7", "x", "-1", "an integer in [0, "},
+    {"initial.pose", "initial:\n  pose: @\n", "air", "[1]", "upside_down", "one of flat, gait_start, air, explicit"},
+    {"initial.x", "initial:\n  x: @\n", "0.5", "x", "1e300", "a number in [-10000, 10000] [m]"},
+    {"initial.height", "initial:\n  height: @\n", "0.1", "x", "-0.5", "a number in [-0.1, 100] [m]"},
+    {"initial.v", "initial:\n  v: @\n", "0", "{a: 1}", "1e9", "a number in [-1000, 1000]"},
+    {"gait.A_p", "gait:\n  A_p: @\n", "pi/4", "x", "7", "a number in [-3.14159, 3.14159] [rad]"},
+    {"gait.omega", "gait:\n  omega: @\n", "2*pi", "x", "1e6", "a number in [-100, 100] [rad/s]"},
+    {"gait.eta", "gait:\n  eta: @\n", "-2*pi/5", "x", "100", "a number in [-6.28319, 6.28319] [rad]"},
+    {"duration", "duration: @\n", "5", "long", "1e300", "a number in (0, 1e+06] [s]"},
+    {"integrator.method", "integrator:\n  method: @\n", "rk4", "[1]", "magic", "one of euler"},
+    {"integrator.h", "integrator:\n  h: @\n", "1e-4", "x", "1e-15", "a number in [1e-07, 0.1] [s]"},
+    {"integrator.rtol", "integrator:\n  method: dopri45\n  rtol: @\n", "1e-6", "x", "0", "a number in (0, 1]"},
+    {"integrator.atol", "integrator:\n  method: dopri45\n  atol: @\n", "1e-6", "x", "-1", "a number in (0, 1]"},
+    {"integrator.h_min", "integrator:\n  method: dopri45\n  h_min: @\n", "1e-9", "x", "1", "a number in [1e-12, 0.1]"},
+    {"integrator.h_max", "integrator:\n  method: dopri45\n  h_max: @\n", "1e-3", "x", "10", "a number in [1e-07, 1]"},
+    {"faults[0].type", "faults:\n  - joint: 0\n    type: @\n", "nan", "[1]", "gremlin", "one of torque_gain"},
+    {"faults[0].joint", "faults:\n  - type: nan\n    joint: @\n", "4", "x", "5", "an integer in [0, 4]"},
+    {"faults[0].t_start", "faults:\n  - type: nan\n    t_start: @\n", "1", "x", "-1", "a number in [0, 1e+06] [s]"},
+    {"faults[0].value", "faults:\n  - type: stale\n    value: @\n", "15", "x", "16", "an integer in [1, 15]"},
+    {"faults[0].duration", "faults:\n  - type: nan\n    duration: @\n", "1", "x", "0", "a number in (0, 1e+06] [s]"},
+};
+
+}  // namespace
+
+TEST(BadInputs, EverySceneKeyRefusesWrongTypeWrongRangeAndDuplicate) {
+  for (const KeyRow& k : kSceneKeys) check_row(k, scene_error);
+}
+
+TEST(BadInputs, DuplicateKeysAtAnyLevelAndInFlowMaps) {
+  std::string e = scene_error("robot: {N: 6, N: 40}\n");
+  EXPECT_EQ(e, "bad.yaml:1:15: robot.N = \"40\": expected each key once (duplicate key: 'N' is already "
+               "given at line 1)");
+  e = scene_error("ground: {k: 350}\nduration: 5\nground: {k: 10}\n");
+  EXPECT_EQ(e.rfind("bad.yaml:3:1: ground = {map}: expected each key once", 0), 0u) << e;
+  e = scene_error("ground: {}\nobstacles:\n  - {x_near: 0.2, width: 0.1, width: 0.2}\n");
+  EXPECT_EQ(e.rfind("bad.yaml:3:31: obstacles[0].width = \"0.2\": expected each key once", 0), 0u) << e;
+}
+
+// Found by the YAML fuzzer (config/fuzz): a quoted key with a newline made a two-line message.
+TEST(BadInputs, MessagesStayOnOneLineWhateverTheKeyHolds) {
+  const std::string e = scene_error("\"durat\\nion\": 5\n");
+  EXPECT_EQ(e.rfind("bad.yaml:1:1: unknown key 'durat\\nion': expected one of name", 0), 0u) << e;
+  EXPECT_TRUE(one_line(e)) << e;
+  EXPECT_EQ(config::one_line("a\tb\x01" "c"), "a\\tb\\x01c");
+}
+
+TEST(BadInputs, EmptyFileDirectoryAndDevicesAreRefused) {
+  const auto dir = std::filesystem::temp_directory_path() / ("pw_bad_inputs_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string empty = (dir / "empty.yaml").string();
+  { std::ofstream(empty) << "# nothing but a comment\n"; }
+  std::string e = error_of([&] { config::load_scene(empty); });
+  EXPECT_EQ(e, empty + ":1:1: (top level) = \"\": expected a YAML map of keys (the file is empty)");
+  e = error_of([&] { config::load_daemon_config(empty); });
+  EXPECT_EQ(e, empty + ":1:1: (top level) = \"\": expected a YAML map of keys (the file is empty)");
+  e = error_of([&] { config::load_scene(dir.string()); });
+  EXPECT_EQ(e, dir.string() + ": is a directory: expected a YAML file");
+  e = error_of([&] { config::load_daemon_config("/dev/zero"); });
+  EXPECT_EQ(e, "/dev/zero: is not a regular file (a device, a pipe or a socket): expected a YAML file");
+  const std::string big = (dir / "big.yaml").string();
+  { std::ofstream(big) << "name: x\n" << std::string(config::kMaxFileBytes, '#') << '\n'; }
+  e = error_of([&] { config::load_scene(big); });
+  EXPECT_NE(e.find(big + ": is "), std::string::npos) << e;
+  EXPECT_NE(e.find("expected a YAML file of at most 1048576 bytes"), std::string::npos) << e;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(BadInputs, SceneContradictionsAreRefused) {
+  std::string e = scene_error("robot:\n  rigid_variant: paper\n");
+  EXPECT_EQ(e.rfind("bad.yaml:2:18: robot.rigid_variant = \"paper\": expected joints: rigid beside it", 0), 0u) << e;
+  e = scene_error("integrator:\n  method: rk4\n  rtol: 1e-6\n");
+  EXPECT_EQ(e.rfind("bad.yaml:3:9: integrator.rtol = \"1e-6\": expected integrator.method: dopri45 beside it", 0), 0u)
+      << e;
+  e = scene_error("integrator:\n  rtol: 1e-6\n");  // the default method is implicit_velocity
+  EXPECT_NE(e.find("integrator.rtol = \"1e-6\": expected integrator.method: dopri45 beside it (rtol is the "
+                   "adaptive method's; method is implicit_velocity)"), std::string::npos) << e;
+  e = scene_error("robot:\n  N: 4\n  K: [1, 2]\n");
+  EXPECT_EQ(e.rfind("bad.yaml:3:6: robot.K = [list]: expected one stiffness for every joint or N-1 = 3", 0), 0u) << e;
+  e = scene_error("faults:\n  - {type: stale, value: 0}\n");
+  EXPECT_NE(e.find("bad.yaml:2:26: faults[0].value = \"0\": expected an integer in [1, 15]"), std::string::npos) << e;
+  // 2 cm into a k = 1e5 ground would launch the robot (10 × its weight 6.87 N allows 0.69 mm).
+  e = scene_error("ground: {k: 1e5}\ninitial:\n  height: -0.02\n");
+  EXPECT_EQ(e.rfind("bad.yaml:3:11: initial.height = \"-0.02\": expected a start at most 0.0006867", 0), 0u) << e;
+  EXPECT_EQ(scene_error("ground: {k: 350}\ninitial:\n  height: -0.002\n"), "(no error)")
+      << "a shallow start in a soft ground is a documented option";
+  e = scene_error("faults:\n  - {type: spring_scale, value: 0}\n");
+  EXPECT_NE(e.find("faults[0].value = \"0\": expected a number in (0, 1e+06]"), std::string::npos) << e;
+}
+
+// A tool that ignores the faults list refuses the scene instead of running it fault-free.
+TEST(BadInputs, FaultsInASceneForAToolThatIgnoresThem) {
+  const auto dir = std::filesystem::temp_directory_path() / ("pw_bad_faults_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string f = (dir / "faulty.yaml").string();
+  { std::ofstream(f) << "name: faulty\nfaults:\n  - {type: nan, joint: 1}\n"; }
+  const std::string e = error_of([&] { config::load_scene(f, {.faults = false, .consumer = "pedalwave_sim"}); });
+  EXPECT_EQ(e.rfind(f + ":3:3: faults = [list]: expected no faults: list (pedalwave_sim does not inject them", 0), 0u) << e;
+  EXPECT_EQ(config::load_scene(f).faults.size(), 1u) << "a program that injects them reads them";
+  std::filesystem::remove_all(dir);
+}
+
+// ---- the daemon configuration ----
+
+namespace {
+const std::string kSimDriver = "driver:\n  type: sim\n  scene: ../scenes/flat_high_friction.yaml\n";
+const std::vector<KeyRow> kDaemonKeys = {
+    {"rate_hz", "rate_hz: @\n" + kSimDriver, "500", "fast", "1e9", "a rate in (0, 20000] Hz"},
+    {"duration", "duration: @\n" + kSimDriver, "2", "long", "1e300", "a number in [0, 1e+07] [s]"},
+    {"driver.type", "rate_hz: 250\ndriver:\n  type: @\n", "socketcan", "[1]", "usb", "one of sim, socketcan, serial"},
+    {"driver.clock", kSimDriver + "  clock: @\n", "free_running", "[1]", "sundial", "one of lockstep, free_running"},
+    {"driver.command_timeout", kSimDriver + "  command_timeout: @\n", "0.1", "x", "1e9", "a number in (0, 10] [s]"},
+    {"driver.ifname", "rate_hz: 250\ndriver:\n  type: socketcan\n  ifname: @\n", "can1", "[1]", "a/b", "a network interface name"},
+    {"driver.bitrate", "rate_hz: 100\ndriver:\n  type: socketcan\n  bitrate: @\n", "500000", "x", "1e300", "a number in (0, 1e+06]"},
+    {"driver.max_load", "rate_hz: 100\ndriver:\n  type: socketcan\n  max_load: @\n", "0.5", "x", "2", "a number in (0, 1]"},
+    {"driver.baud", "rate_hz: 250\ndriver:\n  type: serial\n  baud: @\n", "1000000", "x", "10", "an integer in [9600, 4000000]"},
+    {"driver.return_delay", "rate_hz: 250\ndriver:\n  type: serial\n  return_delay: @\n", "1e-5", "x", "5", "a number in [0, 0.1] [s]"},
+    {"controller.k_c", kSimDriver + "controller:\n  k_c: @\n", "5", "x", "1e300", "a number in [-1000, 1000]"},
+    {"controller.K_p", kSimDriver + "controller:\n  K_p: @\n", "30", "{a: 1}", "-1", "a number in [0, 1e+06]"},
+    {"controller.pd_placement", kSimDriver + "controller:\n  pd_placement: @\n", "module", "[1]", "cloud", "one of module, host"},
+    {"realtime.priority", kSimDriver + "realtime:\n  priority: @\n", "10", "x", "100", "an integer in [0, 99]"},
+    {"realtime.stale_timeout", kSimDriver + "realtime:\n  stale_timeout: @\n", "0.02", "x", "1e9", "a number in (0, 10] [s]"},
+    {"realtime.read_budget", kSimDriver + "realtime:\n  read_budget: @\n", "0.6", "x", "2", "a number in (0, 1]"},
+    {"realtime.auto_start", kSimDriver + "realtime:\n  auto_start: @\n", "false", "perhaps", "", ""},
+    {"observer.enabled", kSimDriver + "observer:\n  enabled: @\n", "false", "x", "", ""},
+    {"telemetry.domain_id", kSimDriver + "telemetry:\n  domain_id: @\n", "3", "x", "233", "an integer in [0, 232]"},
+    {"telemetry.interface", kSimDriver + "telemetry:\n  interface: @\n", "eth0", "[1]", "a b", "a network interface name"},
+    {"telemetry.omega_max", kSimDriver + "telemetry:\n  omega_max: @\n", "6", "x", "1e300", "a number in (0, 100] [rad/s]"},
+};
+}  // namespace
+
+TEST(BadInputs, EveryDaemonKeyRefusesWrongTypeWrongRangeAndDuplicate) {
+  for (const KeyRow& k : kDaemonKeys) check_row(k, daemon_error);
+}
+
+TEST(BadInputs, DaemonContradictionsAreRefused) {
+  // The robot beside a simulated plant is the scene's robot (N = 6 there).
+  std::string e = daemon_error("robot: {N: 12}\n" + kSimDriver);
+  EXPECT_EQ(e.rfind("bad.yaml:1:12: robot.N = \"12\": expected the simulated robot's value 6 (driver.scene: ", 0), 0u) << e;
+  e = daemon_error("robot: {N: 6, K: 5}\n" + kSimDriver);
+  EXPECT_NE(e.find("robot.K = \"5\": expected the simulated robot's value K[0] = 3"), std::string::npos) << e;
+  EXPECT_EQ(daemon_error("robot: {N: 6, K: 3}\n" + kSimDriver), "(no error)") << "the same robot is fine";
+  // Less than one period rounds to 0 cycles, which would mean "run forever".
+  e = daemon_error("duration: 0.0004\n" + kSimDriver);
+  EXPECT_EQ(e, "bad.yaml:1:11: duration = \"0.0004\": expected 0 (until a signal) or at least one control period "
+               "1/rate_hz = 0.001 s");
+  // The scene's own errors keep the scene's file and line.
+  e = daemon_error("driver:\n  type: sim\n  scene: /dev/null\n");
+  EXPECT_NE(e.find("driver.scene: /dev/null: is not a regular file"), std::string::npos) << e;
+}
+
+TEST(BadInputs, DurationProblem) {
+  EXPECT_EQ(config::duration_problem(0, 1000), "");
+  EXPECT_EQ(config::duration_problem(5, 1000), "");
+  EXPECT_EQ(config::duration_problem(0.001, 1000), "");
+  EXPECT_NE(config::duration_problem(0.0004, 1000), "");
+  EXPECT_NE(config::duration_problem(-1, 1000), "");
+  EXPECT_NE(config::duration_problem(std::nan(""), 1000), "");
+  EXPECT_NE(config::duration_problem(HUGE_VAL, 1000), "");
+  EXPECT_NE(config::duration_problem(1e308, 1000), "");
+}

@@ -1,0 +1,166 @@
+// pedalwave_runtime's command line end to end (issue 15): bad input exits 2 with one line naming
+// the option or the file and what was expected; --check checks the devices, interfaces and
+// folders without moving the robot; SIGHUP and SIGQUIT end the run in the same safe stop (and
+// summary) as SIGTERM. The built executable is run as a child process.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+
+namespace {
+
+namespace fs = std::filesystem;
+const std::string kExe = PEDALWAVE_RUNTIME_EXE;
+const std::string kConfigs = std::string(PEDALWAVE_CONFIG_DIR) + "/runtime/";
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+class RuntimeCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("pedalwave_runtime_cli_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  // Starts the daemon with `args` (stdout/stderr into files); returns its pid.
+  pid_t start(const std::string& args) {
+    const std::string cmd = "exec '" + kExe + "' " + args + " >'" + (dir_ / "out").string() + "' 2>'" +
+                            (dir_ / "err").string() + "'";
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    return pid;
+  }
+  // Waits for the child; returns its exit status (-signal when killed by one).
+  static int wait_for(pid_t pid) {
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -WTERMSIG(status);
+  }
+  int run(const std::string& args) { return wait_for(start(args)); }
+  std::string out() const { return slurp(dir_ / "out"); }
+  std::string err() const { return slurp(dir_ / "err"); }
+  std::string write(const std::string& name, const std::string& text) const {
+    const fs::path p = dir_ / name;
+    std::ofstream(p) << text;
+    return p.string();
+  }
+  fs::path dir_;
+};
+
+int lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+
+}  // namespace
+
+TEST_F(RuntimeCli, BadDurationsExit2WithOneLine) {
+  const std::string c = "-c '" + kConfigs + "sim_lockstep.yaml' --no-telemetry --duration ";
+  for (const char* d : {"-1", "nan", "inf", "1e308"}) {
+    SCOPED_TRACE(d);
+    EXPECT_EQ(run(c + d), 2);
+    EXPECT_EQ(err().rfind(std::string("pedalwave_runtime: error: --duration "), 0), 0u) << err();
+    EXPECT_NE(err().find(": expected a run time in [0, 1e+07] s (0 = until a signal)"), std::string::npos) << err();
+    EXPECT_EQ(lines(err()), 1) << err();
+  }
+  EXPECT_EQ(run(c + "0.0004"), 2);
+  EXPECT_EQ(err(), "pedalwave_runtime: error: --duration 0.0004: expected 0 (until a signal) or at least one "
+                   "control period 1/rate_hz = 0.001 s\n");
+}
+
+TEST_F(RuntimeCli, CommandLineErrorsExit2NotCli11Codes) {
+  EXPECT_EQ(run("--no-such-option -c x.yaml"), 2);
+  EXPECT_NE(err().find("pedalwave_runtime: error: "), std::string::npos) << err();
+  EXPECT_NE(err().find("--no-such-option"), std::string::npos) << err();
+  EXPECT_EQ(lines(err()), 1) << err();
+  EXPECT_EQ(run("--duration"), 2);
+  EXPECT_EQ(lines(err()), 1) << err();
+  EXPECT_EQ(run("--help"), 0);
+}
+
+TEST_F(RuntimeCli, ConfigThatIsADeviceIsRefusedAtOnce) {
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_EQ(run("-c /dev/zero --check"), 2);
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(5));
+  EXPECT_EQ(err(), "pedalwave_runtime: error: /dev/zero: is not a regular file (a device, a pipe or a socket): "
+                   "expected a YAML file\n");
+  EXPECT_EQ(run("-c '" + dir_.string() + "' --check"), 2);
+  EXPECT_EQ(err(), "pedalwave_runtime: error: " + dir_.string() + ": is a directory: expected a YAML file\n");
+}
+
+TEST_F(RuntimeCli, CheckLooksAtDevicesInterfacesAndFolders) {
+  const std::string serial = write("serial.yaml",
+                                   "rate_hz: 250\ndriver: {type: serial, device: /dev/ttyUSB9, baud: 1000000}\n"
+                                   "telemetry: {enabled: true, interface: eth99}\n");
+  EXPECT_EQ(run("-c '" + serial + "' --check"), 2);
+  EXPECT_NE(out().find("FAIL  serial device /dev/ttyUSB9 exists and opens: No such file or directory"),
+            std::string::npos) << out();
+  EXPECT_NE(out().find("FAIL  DDS network interface eth99 exists: no such network interface"), std::string::npos)
+      << out();
+  EXPECT_EQ(err(), "pedalwave_runtime: error: " + serial + ": --check failed (the FAIL lines above)\n");
+  // A character device that opens (nothing is written to it).
+  const std::string null_dev = write("null.yaml", "rate_hz: 250\ndriver: {type: serial, device: /dev/null, baud: 1000000}\n"
+                                                  "telemetry: {enabled: true, interface: lo}\n");
+  EXPECT_EQ(run("-c '" + null_dev + "' --check"), 0) << out() << err();
+  EXPECT_NE(out().find("ok    serial device /dev/null exists and opens"), std::string::npos) << out();
+  EXPECT_NE(out().find("ok    DDS network interface lo exists"), std::string::npos) << out();
+
+  const std::string can = write("can.yaml", "rate_hz: 250\ndriver: {type: socketcan, ifname: can9, fd: true}\n"
+                                            "telemetry: {enabled: false}\n");
+  EXPECT_EQ(run("-c '" + can + "' --check"), 2);
+  EXPECT_NE(out().find("FAIL  CAN interface can9 exists: no such network interface"), std::string::npos) << out();
+  // --check-config: the file alone (a packaging machine without the bus).
+  EXPECT_EQ(run("-c '" + can + "' --check-config"), 0) << err();
+  EXPECT_EQ(out().find("FAIL"), std::string::npos) << out();
+
+  const std::string sim = "-c '" + kConfigs + "sim_lockstep.yaml' --no-telemetry";
+  EXPECT_EQ(run(sim + " --check --plots /proc/forbidden"), 2);
+  EXPECT_NE(out().find("FAIL  --plots /proc/forbidden is a writable folder: cannot create the folder"),
+            std::string::npos) << out();
+  EXPECT_EQ(run(sim + " --check --plots '" + (dir_ / "plots").string() + "'"), 0) << out();
+  EXPECT_TRUE(fs::is_directory(dir_ / "plots"));
+}
+
+// Without --check too, an unwritable plots folder is refused before the run, not after it.
+TEST_F(RuntimeCli, UnwritablePlotsFolderFailsAtStart) {
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_EQ(run("-c '" + kConfigs + "sim_lockstep.yaml' --no-telemetry --duration 60 --plots /proc/forbidden"), 2);
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(10)) << "refused before the 60 s run";
+  EXPECT_EQ(err().rfind("pedalwave_runtime: error: --plots /proc/forbidden: cannot create the folder", 0), 0u) << err();
+  EXPECT_EQ(lines(err()), 1) << err();
+}
+
+// SIGHUP and SIGQUIT end the run like SIGTERM: safe stop, the summary's exit line, exit 0.
+TEST_F(RuntimeCli, HangupAndQuitEndInTheSafeStop) {
+  for (int sig : {SIGTERM, SIGHUP, SIGQUIT}) {
+    SCOPED_TRACE(sig);
+    const pid_t pid = start("-c '" + kConfigs + "sim_lockstep.yaml' --no-telemetry --duration 0");
+    // Until the start report says it runs (at most 20 s on a loaded machine).
+    for (int i = 0; i < 200 && out().find("pedalwave") == std::string::npos; ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    ASSERT_EQ(::kill(pid, sig), 0);
+    EXPECT_EQ(wait_for(pid), 0) << out() << err();
+    EXPECT_NE(out().find("exit: signal, final mode SAFE_STOP, signal " + std::to_string(sig)), std::string::npos)
+        << out();
+  }
+}

@@ -1,0 +1,91 @@
+// The command-line policy every pedalwave tool shares (README "Bad input and exit codes"), written
+// once: a refused command line or option value is ONE line on stderr, "<tool>: error: <what>", and
+// exit status 2 — never CLI11's own codes (104 … 114) — with --help still exiting 0. The exit
+// statuses below mean the same in every tool.
+//
+// Header-only on purpose: the toolkit library stays free of CLI11; a tool links pedalwave::cli.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <iostream>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <string_view>
+
+namespace pedalwave::toolkit::cli {
+
+inline constexpr int kExitOk = 0;             // done; a daemon: duration reached or SIGTERM/SIGINT/SIGHUP/SIGQUIT
+inline constexpr int kExitInternal = 1;       // an error that is not the input's (cannot write a file, …)
+inline constexpr int kExitBadInput = 2;       // the command line or a file was refused (one line)
+inline constexpr int kExitNumerical = 3;      // a simulation went numerically wrong (NaN, singular)
+inline constexpr int kExitFault = 4;          // a fault ended the run (safe stop)
+inline constexpr int kExitEmergencyStop = 5;  // an operator emergency stop ended the run
+
+// "<tool>: error: <what>" on stderr; returns kExitBadInput.
+inline int bad_input(std::string_view tool, const std::string& what) {
+  std::cerr << tool << ": error: " << what << '\n';
+  return kExitBadInput;
+}
+
+// Parses the command line. nullopt: go on. Otherwise the exit status to return: 0 after --help
+// (printed), kExitBadInput after one error line. An unknown word where a subcommand is required
+// is named ("'dance' is not a subcommand: expected one of flat, friction, …"), not CLI11's "A
+// subcommand is required".
+inline std::optional<int> parse(CLI::App& app, int argc, char** argv, std::string_view tool) {
+  try {
+    app.parse(argc, argv);
+    return std::nullopt;
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help, --help-all, --version
+    const auto subs = app.get_subcommands([](CLI::App*) { return true; });
+    if (!subs.empty() && app.get_subcommands().empty()) {
+      for (int i = 1; i < argc; ++i) {
+        const std::string word = argv[i];
+        if (word.empty() || word[0] == '-') continue;
+        std::string names;
+        for (const CLI::App* s : subs) names += (names.empty() ? "" : ", ") + s->get_name();
+        return bad_input(tool, "'" + word + "' is not a subcommand: expected one of " + names + " (see --help)");
+      }
+    }
+    std::string what = e.what();
+    for (char& c : what)
+      if (c == '\n') c = ' ';
+    return bad_input(tool, what + " (see --help)");
+  }
+}
+
+// Option validators with short messages (CLI::PositiveNumber prints the whole double range and
+// lets nan and inf through to some options): a finite number > 0, and a finite number in [lo, hi].
+inline CLI::Validator finite_positive() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        try {
+          std::size_t used = 0;
+          const double v = std::stod(text, &used);
+          if (used == text.size() && std::isfinite(v) && v > 0) return {};
+        } catch (const std::exception&) {
+        }
+        return "'" + text + "': expected a finite number > 0";
+      },
+      "> 0", "finite_positive");
+}
+inline CLI::Validator finite_in(double lo, double hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& text) -> std::string {
+        try {
+          std::size_t used = 0;
+          const double v = std::stod(text, &used);
+          if (used == text.size() && std::isfinite(v) && v >= lo && v <= hi) return {};
+        } catch (const std::exception&) {
+        }
+        std::ostringstream os;
+        os << "'" << text << "': expected a finite number in [" << lo << ", " << hi << "]";
+        return os.str();
+      },
+      "[lo, hi]", "finite_in");
+}
+
+}  // namespace pedalwave::toolkit::cli

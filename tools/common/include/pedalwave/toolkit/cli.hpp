@@ -73,6 +73,8 @@ inline CLI::Validator finite_positive() {
       "> 0", "finite_positive");
 }
 inline CLI::Validator finite_in(double lo, double hi) {
+  std::ostringstream range;
+  range << "[" << lo << ", " << hi << "]";
   return CLI::Validator(
       [lo, hi](std::string& text) -> std::string {
         try {
@@ -85,7 +87,7 @@ inline CLI::Validator finite_in(double lo, double hi) {
         os << "'" << text << "': expected a finite number in [" << lo << ", " << hi << "]";
         return os.str();
       },
-      "[lo, hi]", "finite_in");
+      range.str(), "finite_in");
 }
 
 }  // namespace pedalwave::toolkit::cli

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <random>
 
+#include "pedalwave/drivers/late_sample.hpp"
 #include "pedalwave/drivers/module_clock.hpp"
 
 namespace pd = pedalwave::drivers;
@@ -71,4 +72,27 @@ TEST(ModuleClock, NeverEarlierThanAProvenBoundBeforeLock) {
     EXPECT_LT(std::abs(est - sample), 3000) << "cycle " << k;
   }
   EXPECT_FALSE(clk.locked());
+}
+
+// The application time a driver hands out: the sample time minus the age, on the host clock;
+// unknown (0) once the age saturated at kAgeMaxUs (applied 32.8 ms or more before the sample).
+TEST(ModuleClock, ASaturatedApplicationAgeIsAnUnknownApplicationTime) {
+  namespace wire = pd::wire;
+  pd::ModuleClock clk;
+  const std::int64_t host = 5'000'000'000;
+  const std::int64_t at = clk.update(1'000'000u, host);
+  wire::ModuleTiming t{1'000'000u, 1234, false, 0};
+  EXPECT_EQ(pd::applied_host_ns(t, clk), at - 1'234'000);
+  t.applied_age_us = wire::kAgeMaxUs - 1;
+  EXPECT_EQ(pd::applied_host_ns(t, clk), at - 1000 * std::int64_t{wire::kAgeMaxUs - 1});
+  t.applied_age_us = wire::kAgeMaxUs;
+  EXPECT_EQ(pd::applied_host_ns(t, clk), 0);
+  pd::Feedback out;
+  pd::HandedOut handed;
+  std::array<std::uint64_t, 256> seq_of_tag{};
+  seq_of_tag[0] = 41;
+  pd::hand_out(t, host + 10'000'000, seq_of_tag, 0xFF, clk, handed, out, 2);
+  EXPECT_GT(out.sample_ns[2], 0);
+  EXPECT_EQ(out.applied_ns[2], 0) << "the observer does not place the command at the saturated age";
+  EXPECT_EQ(out.applied_seq[2], 41u);
 }

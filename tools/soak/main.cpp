@@ -261,7 +261,8 @@ int run(const Options& opt) {
   }
   // The runtime's own validation of the written configuration (bus budget, rate, realtime...).
   {
-    const pid_t check = spawn({runtime_exe.string(), "-c", cfg_path.string(), "--check"}, out / "runtime_check.log");
+    // --check-config: the file alone (the pty link does not exist until the virtual robot starts).
+    const pid_t check = spawn({runtime_exe.string(), "-c", cfg_path.string(), "--check-config"}, out / "runtime_check.log");
     const int rc = wait_for(check, 60.0).value_or(-1);
     if (rc != 0)
       throw sk::UsageError("the runtime refused the configuration written from --config " + opt.config + " (" +

@@ -160,6 +160,12 @@ struct ResidualPeak {
   int rows = 0;
   std::size_t columns = 0;
 };
+// Fault events, warnings and holds the run listed in its summary.
+int listed_events(const WalkResult& r) {
+  int n = 0;
+  for (const runtime::RunEvent& e : r.daemon.events) n += e.listed;
+  return n;
+}
 ResidualPeak residual_peak(const std::string& dir, double from, double to) {
   ResidualPeak p;
   std::ifstream csv(dir + "/cycles.csv");
@@ -202,9 +208,7 @@ TEST(BusModel, AHostStallLeavesNoImpulseInTheResidual) {
   const WalkResult bus = test::walk_bus_model(s, scene(), {.stall_at_cycle = 2500, .stall_periods = 50, .plots_dir = dir});
   print("bus model 500 Hz +0.5, a 0.1 s host stall at 5 s", bus, bus.speed);
   EXPECT_EQ(bus.daemon.run.reason, runtime::ExitReason::kCycleLimit) << bus.daemon.exit_line;
-  int listed = 0;
-  for (const runtime::RunEvent& e : bus.daemon.events) listed += e.listed;
-  EXPECT_EQ(listed, 0) << bus.daemon.exit_line;
+  EXPECT_EQ(listed_events(bus), 0) << bus.daemon.exit_line;
   const ResidualPeak before = residual_peak(dir, 2.0, 5.0);  // controller time [s]
   const ResidualPeak after = residual_peak(dir, 5.0, 5.5);
   ASSERT_EQ(before.columns, 5u) << dir << "/cycles.csv";
@@ -247,9 +251,7 @@ TEST(BusModel, AMachineStallAt100HzLeavesNoImpulseInTheResidual) {
     // The stall is the span since the modules' last turn, (periods) SYNC intervals of 10 ms.
     EXPECT_EQ(bus.plant.gaps_skipped, periods > 10 ? 1u : 0u) << periods << " periods";
     EXPECT_EQ(bus.daemon.run.reason, runtime::ExitReason::kCycleLimit) << bus.daemon.exit_line;
-    int listed = 0;
-    for (const runtime::RunEvent& e : bus.daemon.events) listed += e.listed;
-    EXPECT_EQ(listed, 0) << bus.daemon.exit_line;
+    EXPECT_EQ(listed_events(bus), 0) << bus.daemon.exit_line;
     EXPECT_GT(after.rows, 10);
     EXPECT_LT(after.value - before.value, 0.25 * 0.03) << "N·m: what the stall added to the residual's peak";
   }
@@ -267,9 +269,7 @@ TEST(BusModel, ObserverStaysQuietWithLostReplies) {
   print("bus model 1 kHz +0.5, 5 % lost", bus, sim.speed);
   std::printf("%s\n", bus.daemon.exit_line.c_str());
   EXPECT_EQ(bus.daemon.run.reason, runtime::ExitReason::kCycleLimit);
-  int listed = 0;
-  for (const runtime::RunEvent& e : bus.daemon.events) listed += e.listed;
-  EXPECT_EQ(listed, 0) << bus.daemon.exit_line;
+  EXPECT_EQ(listed_events(bus), 0) << bus.daemon.exit_line;
   EXPECT_NEAR(bus.speed, sim.speed, 0.01 * sim.speed);
 }
 
@@ -295,9 +295,7 @@ TEST(BusModel, ObserverStaysQuietWithLateAnswersAt100Hz) {
     std::printf("[vrobot] bus model 100 Hz, %s late answers: peak |r| %.4f N·m; %s\n",
                 late ? "15 %" : "no", p.value, bus.daemon.exit_line.c_str());
     EXPECT_EQ(bus.daemon.run.reason, runtime::ExitReason::kCycleLimit) << bus.daemon.exit_line;
-    int listed = 0;
-    for (const runtime::RunEvent& e : bus.daemon.events) listed += e.listed;
-    EXPECT_EQ(listed, 0) << bus.daemon.exit_line;
+    EXPECT_EQ(listed_events(bus), 0) << bus.daemon.exit_line;
     if (late) {
       // 15 % of 3000 × 5 replies late (≈ 2250); one is used when the one before it was late too
       // (0.15² × 15000 ≈ 340), else the joint is missing for that cycle.

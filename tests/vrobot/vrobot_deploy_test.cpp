@@ -103,64 +103,6 @@ void say_if_not_realtime(const WalkResult& r) {
                 r.robot_thread.c_str(), r.daemon.run.rt.describe().c_str());
 }
 
-// A run in which the kernel's tty layer (or the machine, holding the modules' thread) kept the
-// bytes from one end for as long as the bus's "module silent" time (0.2 s) while the other ran
-// ends, correctly, in a safe stop on silent modules: the host's loop ran and handed every SYNC to
-// the kernel, yet the modules received no SYNC for ≥ 0.2 s — or the modules kept writing replies
-// and the host received nothing for ≥ 0.2 s (seen on the shared CI machine under the CPU load:
-// 0.2 s without a byte while the loop's longest stall was 0.1 s). That is a verdict on the
-// machine, not on the runtime: such a run is VOID — said loudly, counted in the table, and run
-// again, at most kAttempts in all; a machine that keeps stalling fails the test.
-// A stall of the host's loop alone is NOT void any more: the runtime must ride through it (one
-// request left unanswered across it is not a silent module; the interval is not integrated; the
-// virtual robot keeps its world at wall time, or holds it when the machine held its own thread
-// too). It is printed with the run.
-constexpr double kMachineStall = 0.2;  // [s]
-constexpr int kAttempts = 3;
-
-struct Stall {
-  double loop = 0, link = 0;  // [s]
-  double worst() const { return link; }  // what makes a run void (loop: printed only)
-};
-
-Stall stall_of(const WalkResult& r, double rate_hz) {
-  Stall st;
-  st.loop = static_cast<double>(r.daemon.run.max_skipped) / rate_hz;
-  if (r.counters.tx_dropped == 0) {  // every SYNC went to the kernel
-    // What the link (or the machine, holding the modules' thread) held beyond the loop's own
-    // longest stall: a loop held 0.2 s sends no SYNC and reads no reply for 0.2 s itself.
-    const double syncs_held = 1e-9 * static_cast<double>(r.emu.sync_gap_max_ns) - st.loop;
-    const bool robot_wrote = 1e-9 * static_cast<double>(r.emu.reply_gap_max_ns) < kMachineStall;
-    const double replies_held =
-        robot_wrote ? 1e-9 * static_cast<double>(r.counters.rx_silence_max_ns) - st.loop : 0;
-    st.link = std::max({0.0, syncs_held, replies_held});
-  }
-  return st;
-}
-
-template <class Run>
-WalkResult walk_unless_machine_stalled(const char* what, double rate_hz, int& void_runs, Run run) {
-  WalkResult r;
-  for (int attempt = 1; attempt <= kAttempts; ++attempt) {
-    r = run();
-    const Stall st = stall_of(r, rate_hz);
-    if (st.worst() < kMachineStall) break;
-    ++void_runs;
-    std::printf("######## VOID RUN (%s, attempt %d of %d): the link (or the machine, holding the "
-                "modules' thread) held the bytes for %.0f ms beyond the loop's own longest stall "
-                "(%.0f ms, %u periods) (modules' longest SYNC gap %.0f ms, host's longest silence "
-                "%.0f ms, modules' longest reply gap %.0f ms), beyond the %.0f ms the bus checks "
-                "allow; the runtime's verdict was: %s ########\n",
-                what, attempt, kAttempts, 1e3 * st.link, 1e3 * st.loop, r.daemon.run.max_skipped,
-                1e-6 * static_cast<double>(r.emu.sync_gap_max_ns),
-                1e-6 * static_cast<double>(r.counters.rx_silence_max_ns),
-                1e-6 * static_cast<double>(r.emu.reply_gap_max_ns), 1e3 * kMachineStall,
-                r.daemon.exit_line.c_str());
-    std::fflush(stdout);
-  }
-  return r;
-}
-
 }  // namespace
 
 TEST(Deployment, SerialPtyWalks60sObserverAndTelemetryOnUnderCpuLoad) {
@@ -171,16 +113,16 @@ TEST(Deployment, SerialPtyWalks60sObserverAndTelemetryOnUnderCpuLoad) {
   const WalkResult sim = test::walk_sim(ref, scene());  // the same loop in lockstep, in-process
   toolkit::CpuLoad load;
   int void_runs = 0;
-  const WalkResult bus = walk_unless_machine_stalled("60 s walk", s.rate_hz, void_runs, [&] {
+  const WalkResult bus = test::walk_unless_machine_stalled("60 s walk", s.rate_hz, void_runs, [&] {
     load.start(cpus());
     WalkResult r = test::walk_bus(s, scene());
     load.stop();
     return r;
   });
   print("serial pty 500 Hz, 60 s, observer + telemetry, CPU load", bus, sim.speed);
-  std::printf("[deploy] void runs (machine stalls ≥ %.0f ms): %d\n", 1e3 * kMachineStall,
+  std::printf("[deploy] void runs (machine stalls ≥ %.0f ms): %d\n", 1e3 * test::kMachineStall,
               void_runs);
-  EXPECT_LT(stall_of(bus, s.rate_hz).worst(), kMachineStall)
+  EXPECT_LT(test::stall_of(bus, s.rate_hz).worst(), test::kMachineStall)
       << "the machine stalled the loop in every attempt";
   std::printf("%s%s", bus.report.c_str(), events_text(bus).c_str());
   say_if_not_realtime(bus);
@@ -230,14 +172,14 @@ TEST_P(DeploymentFaults, DetectedAndIsolatedOverTheBus) {
     sc.faults.push_back({.type = f.type, .joint = joint, .t_start = onset, .value = f.value});
     char what[96];
     std::snprintf(what, sizeof what, "%s on joint %d from %.1f s", f.name, joint + 1, onset);
-    const WalkResult bus = walk_unless_machine_stalled(what, s.rate_hz, void_runs, [&] {
+    const WalkResult bus = test::walk_unless_machine_stalled(what, s.rate_hz, void_runs, [&] {
       toolkit::CpuLoad load;
       load.start(cpus());
       WalkResult r = test::walk_bus(s, sc);
       load.stop();
       return r;
     });
-    EXPECT_LT(stall_of(bus, s.rate_hz).worst(), kMachineStall)
+    EXPECT_LT(test::stall_of(bus, s.rate_hz).worst(), test::kMachineStall)
         << what << ": the machine stalled the loop in every attempt";
     print(what, bus, bus.speed);
     std::printf("%s", events_text(bus).c_str());

@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "pedalwave/drivers/fault_injector.hpp"
+#include "pedalwave/model/plant.hpp"
 
 namespace pedalwave::config {
 
@@ -88,6 +89,37 @@ FrictionLaw read_law(const Reader& r) {
 }
 }  // namespace
 
+namespace {
+
+// A start inside the ground or a box stores k·depth²/2 per body point and launches the robot (2 cm
+// into k = 1e5 N/m threw it 8.9 m up): the normal force k·depth at the deepest point of the start
+// pose (any pose, explicit q included; boxes use the ground's k) may be at most 10 × the robot's
+// weight (the links and the modules at the joints). Blamed on initial.height, initial.q, or the
+// obstacles, whichever put the robot there.
+void check_start_depth(const Reader& r, const Scene& s) {
+  if (!s.ground_on && s.boxes.empty()) return;
+  const Params& p = s.robot;
+  const double weight = (p.N * p.m_l + (p.N - 1) * p.m_r) * p.g;  // [N]
+  const double depth_max = 10.0 * weight / s.ground.k;             // [m]
+  model::Plant plant(s);
+  Eigen::VectorXd q, v;
+  plant.initial_state(q, v);
+  model::ContactReport rep;
+  plant.report(q, v, rep);
+  if (rep.max_penetration <= depth_max) return;
+  const bool explicit_q = s.initial.pose == InitialPose::kExplicit;
+  const bool sunk = !explicit_q && s.initial.height < 0 && -s.initial.height >= rep.max_penetration - 1e-12;
+  std::ostringstream os;
+  os << "a start at most " << depth_max << " m inside the ground or a box (k·depth <= 10 × the robot's weight "
+     << weight << " N at ground.k = " << s.ground.k << " N/m; deeper, the contact launches the robot); this start is "
+     << rep.max_penetration << " m deep";
+  if (explicit_q) r["initial"]["q"].fail(os.str());
+  if (sunk || s.boxes.empty()) r["initial"]["height"].fail(os.str());
+  r["obstacles"].fail(os.str() + ", inside an obstacle");
+}
+
+}  // namespace
+
 Scene read_scene(const Reader& r) {
   r.allow_only({"name", "description", "robot", "ground", "obstacles", "joint_friction",
                 "torque_limit", "sensor_noise", "initial", "gait", "duration", "integrator",
@@ -165,7 +197,7 @@ Scene read_scene(const Reader& r) {
   }
   if (r.has("initial")) {
     const Reader in = r["initial"];
-    in.allow_only({"pose", "x", "height", "q", "v"});
+    in.allow_only({"pose", "x", "height", "theta", "q", "v"});
     const std::string pose = in.choice("pose", "flat", {"flat", "gait_start", "air", "explicit"});
     s.initial.pose = pose == "gait_start" ? InitialPose::kGaitStart
                      : pose == "air"      ? InitialPose::kAir
@@ -173,6 +205,11 @@ Scene read_scene(const Reader& r) {
                                           : InitialPose::kFlat;
     s.initial.x = in.bounded("x", 0.0, -1e4, 1e4, "m");
     s.initial.height = in.bounded("height", 0.0, -0.1, 100, "m");
+    if (in.has("theta")) {
+      if (s.initial.pose == InitialPose::kExplicit)
+        in["theta"].fail("no theta with pose: explicit (q gives θ_N)");
+      s.initial.theta = in.bounded("theta", 0.0, -M_PI, M_PI, "rad");
+    }
     s.initial.q = in.bounded_numbers("q", -1e4, 1e4, "rad or m");
     s.initial.v = in.bounded_numbers("v", -1e3, 1e3, "rad/s or m/s");
     if (s.initial.pose == InitialPose::kExplicit && !in.has("q"))
@@ -220,20 +257,6 @@ Scene read_scene(const Reader& r) {
       s.faults.push_back(spec);
     }
   }
-  // A start inside the ground stores k·depth²/2 per body point and launches the robot (2 cm into
-  // k = 1e5 N/m threw it 8.9 m up): the normal force k·depth may be at most 10 × the robot's
-  // weight (the links and the modules at the joints).
-  if (s.ground_on && s.initial.height < 0 && s.initial.pose != InitialPose::kExplicit) {
-    const Params& p = s.robot;
-    const double weight = (p.N * p.m_l + (p.N - 1) * p.m_r) * p.g;  // [N]
-    const double depth_max = 10.0 * weight / s.ground.k;             // [m]
-    if (-s.initial.height > depth_max) {
-      std::ostringstream os;
-      os << "a start at most " << depth_max << " m inside the ground (k·depth <= 10 × the robot's weight "
-         << weight << " N at ground.k = " << s.ground.k << " N/m; deeper, the ground launches the robot)";
-      r["initial"]["height"].fail(os.str());
-    }
-  }
   if (r.has("gait")) s.gait = read_gait(r["gait"]);
   s.duration = r.bounded("duration", s.duration, 0, 1e6, "s", true);
   if (r.has("integrator")) s.integrator = read_integrator(r["integrator"]);
@@ -243,6 +266,7 @@ Scene read_scene(const Reader& r) {
   } catch (const std::invalid_argument& e) {
     throw ConfigError(e.what());
   }
+  check_start_depth(r, s);
   return s;
 }
 

@@ -66,8 +66,23 @@ void Plant::initial_state(VectorXd& q, VectorXd& v) const {
   if (m.flexible())
     for (int j = 0; j < m.joints(); ++j) q(m.i_beta(j)) = q(m.i_alpha(j));
   q(m.i_px()) = in.x;
-  // Rest the lowest point on the ground (plus the requested height), whatever the shape.
   Data d(m);
+  // The base angle: as given, or the one that levels the chord. With θ_N = 0 the links' absolute
+  // angles θ_i (θ_N = 0) give the chord Σ 2l (cos θ_i, sin θ_i); rotating every link by
+  // −atan2(Σ sin θ_i, Σ cos θ_i) makes its vertical part zero. (θ_N = 0 for every N put the head
+  // of a 12-link gait_start 32 cm up, of a 64-link one 2.5 m.)
+  if (std::isfinite(in.theta)) {
+    q(m.i_theta_N()) = in.theta;
+  } else {
+    update_kinematics(m, d, q, VectorXd());
+    double s = 0.0, c = 0.0;
+    for (int i = 0; i < m.N(); ++i) {
+      s += d.sin_t(i);
+      c += d.cos_t(i);
+    }
+    q(m.i_theta_N()) = -std::atan2(s, c);
+  }
+  // Rest the lowest point on the ground (plus the requested height), whatever the shape.
   update_kinematics(m, d, q, VectorXd());
   double z_low = 1e300;
   for (int k = 0; k < m.points(); ++k) z_low = std::min(z_low, point_position(m, d, q, k).y());

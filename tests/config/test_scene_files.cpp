@@ -112,3 +112,36 @@ TEST(SceneFiles, AnglesMayBeWrittenWithPi) {
   EXPECT_DOUBLE_EQ(s.gait.omega, 2 * M_PI);
   EXPECT_DOUBLE_EQ(s.gait.eta, -2 * M_PI / 5);
 }
+
+// A start deep inside the ground or a box is refused for every pose (k·depth ≤ 10 × the weight;
+// 6.87 N at k = 1e5 allows 0.69 mm), blamed on what put the robot there.
+TEST(SceneFiles, ADeepStartIsRefusedForEveryPoseAndInsideBoxes) {
+  // pose: explicit, the robot flat 2 cm into the ground: q = [α×5, θ_N, p_x, p_z, β×5].
+  std::string e = error_of("ground: {k: 1e5}\ninitial:\n  pose: explicit\n"
+                           "  q: [0, 0, 0, 0, 0, 0, 0, -0.02, 0, 0, 0, 0, 0]\n");
+  EXPECT_EQ(e.rfind("bad.yaml:4:6: initial.q = [list]: expected a start at most 0.0006867", 0), 0u) << e;
+  EXPECT_NE(e.find("this start is 0.02 m deep"), std::string::npos) << e;
+  // A box the flat robot lies inside (its top 5 cm above the links).
+  e = error_of("ground: {k: 1e5}\nobstacles:\n  - {x_near: -0.1, width: 0.2, height: 0.05}\n");
+  EXPECT_EQ(e.rfind("bad.yaml:3:3: obstacles = [list]: expected a start at most 0.0006867", 0), 0u) << e;
+  EXPECT_NE(e.find("inside an obstacle"), std::string::npos) << e;
+  // The same box ahead of the head, and a resting explicit start, load.
+  EXPECT_EQ(error_of("ground: {k: 1e5}\nobstacles:\n  - {ahead_of_head: 0.05, width: 0.2, height: 0.05}\n"), "");
+  EXPECT_EQ(error_of("ground: {k: 1e5}\ninitial:\n  pose: explicit\n"
+                     "  q: [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]\n"), "");
+}
+
+// initial.theta: the base angle, default the one that levels the chord (model::InitialState).
+TEST(SceneFiles, InitialThetaIsTheBaseAngle) {
+  const auto s = config::parse_scene("ground: {}\ninitial: {pose: gait_start, theta: 0.3}\n", "x.yaml");
+  EXPECT_DOUBLE_EQ(s.initial.theta, 0.3);
+  EXPECT_TRUE(std::isnan(config::parse_scene("initial: {pose: gait_start}\n", "x.yaml").initial.theta));
+  std::string e = error_of("initial: {pose: gait_start, theta: 4}\n");
+  EXPECT_NE(e.find("initial.theta = \"4\": expected a number in [-3.14159"), std::string::npos) << e;
+  e = error_of("initial:\n  pose: explicit\n  theta: 0\n  q: [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]\n");
+  EXPECT_NE(e.find("bad.yaml:3:10: initial.theta = \"0\": expected no theta with pose: explicit"), std::string::npos) << e;
+  // The shipped 6-link scenes keep link N flat (theta: 0), the start the README's numbers had.
+  for (const char* name : {"flat_high_friction", "flat_low_friction", "friction_change", "stair", "stair_grip"})
+    EXPECT_EQ(config::load_scene(std::string(PEDALWAVE_CONFIG_DIR "/scenes/") + name + ".yaml").initial.theta, 0.0)
+        << name;
+}

@@ -240,3 +240,68 @@ TEST(Plant, BadScenesAreRejectedWithTheKey) {
   s.boxes = {Box{.width = 0}};
   EXPECT_THROW(Plant{s}, std::invalid_argument);
 }
+
+// The gait_start pose is as high as the gait's wave, whatever N: its base angle levels the chain's
+// chord (head and tail tips at one height), so no point is more than A_p / sin²(η/2) link lengths
+// above the ground (the wave's own height: link angles of amplitude A_p / (2 sin(η/2)), summed
+// once more along the chain). With link N laid flat (theta: 0, the shipped 6-link scenes' start)
+// a 12-link robot's head started 32 cm up and the body fell at t = 0.
+TEST(Plant, GaitStartIsAsHighAsItsWaveForEveryN) {
+  const GaitParams gaits[] = {{}, {.A_p = 0.5, .omega = M_PI, .eta = -M_PI / 4}, {.A_p = 1.0}};
+  for (const GaitParams& g : gaits)
+    for (int N = 2; N <= 64; ++N) {
+      Scene s = flat_scene();
+      s.robot = paper_params(N);
+      s.ground_on = true;
+      s.gait = g;
+      s.initial.pose = InitialPose::kGaitStart;
+      Plant p(s);
+      VectorXd q, v;
+      p.initial_state(q, v);
+      Data d(p.model());
+      update_kinematics(p.model(), d, q, v);
+      const Model& m = p.model();
+      double z_lo = 1e9, z_hi = -1e9;
+      for (int k = 0; k < m.points(); ++k) {
+        z_lo = std::min(z_lo, point_position(m, d, q, k).y());
+        z_hi = std::max(z_hi, point_position(m, d, q, k).y());
+      }
+      const double link = 2 * s.robot.l, bound = g.A_p / std::pow(std::sin(g.eta / 2), 2) * link;
+      EXPECT_NEAR(z_lo, s.ground.z, 1e-12) << "N = " << N << ": the lowest point on the ground";
+      EXPECT_LE(z_hi - z_lo, bound) << "N = " << N << ", A_p = " << g.A_p << ", eta = " << g.eta;
+      EXPECT_NEAR(point_position(m, d, q, m.point_head()).y(),
+                  point_position(m, d, q, Model::point_tail()).y(), 1e-12)
+          << "N = " << N << ": head and tail tips at one height";
+      for (int j = 0; j < m.joints(); ++j)
+        ASSERT_DOUBLE_EQ(q(m.i_alpha(j)), g.A_p * std::sin(g.eta * j)) << "the gait's shape at t = 0";
+    }
+  // The check can fail: link N flat (theta = 0) puts a 12-link robot's head 32 cm up.
+  Scene s = flat_scene();
+  s.robot = paper_params(12);
+  s.ground_on = true;
+  s.initial.pose = InitialPose::kGaitStart;
+  s.initial.theta = 0;
+  Plant p(s);
+  VectorXd q, v;
+  p.initial_state(q, v);
+  Data d(p.model());
+  update_kinematics(p.model(), d, q, v);
+  EXPECT_EQ(q(p.model().i_theta_N()), 0.0);
+  EXPECT_GT(point_position(p.model(), d, q, p.model().point_head()).y(), 0.3);
+}
+
+// Boxes placed ahead_of_head are measured from the head tip of that start pose.
+TEST(Plant, BoxesAheadOfTheHeadAreMeasuredFromTheStartPose) {
+  Scene s = flat_scene();
+  s.robot = paper_params(12);
+  s.ground_on = true;
+  s.initial.pose = InitialPose::kGaitStart;
+  s.boxes = {Box{.ahead_of_head = 0.05}};
+  Plant p(s);
+  VectorXd q, v;
+  p.initial_state(q, v);
+  Data d(p.model());
+  update_kinematics(p.model(), d, q, v);
+  EXPECT_NEAR(p.scene().boxes[0].x_near,
+              point_position(p.model(), d, q, p.model().point_head()).x() + 0.05, 1e-12);
+}

@@ -35,6 +35,7 @@ model::Scene shipped_scene(const std::string& name) {
   s.ground.law = model::FrictionLaw::kRegularized;
   s.ground.v_s = 1e-3;
   s.initial.pose = model::InitialPose::kGaitStart;
+  s.initial.theta = 0;  // link N flat: the shipped scenes' start, the README's campaign numbers
   s.integrator.method = model::Method::kImplicitVelocity;
   s.integrator.h = 5e-4;
   s.duration = 20;

@@ -251,7 +251,7 @@ std::string scene_yaml(int links) {
     << "description: loopbench, the flat high-friction scene with " << links << " links\n"
     << "robot: {N: " << links << ", joints: flexible}\n"
     << "ground: {k: 350, d: 15, mu: 0.82, friction: regularized, v_s: 1.0e-3}\n"
-    << "initial: {pose: gait_start, x: 0.0}\n"
+    << "initial: {pose: gait_start, x: 0.0, theta: 0}\n"
     << "gait: {A_p: pi/4, omega: pi, eta: -2*pi/5}\n"
     << "integrator: {method: implicit_velocity, h: 5.0e-4}\n";
   return s.str();

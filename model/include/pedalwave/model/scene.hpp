@@ -81,6 +81,11 @@ struct InitialState {
   InitialPose pose = InitialPose::kFlat;
   double x = 0.0;        // p_x [m]
   double height = 0.0;   // p_z above the ground [m] (kAir); negative = starts in penetration
+  // θ_N at the start [rad] (not kExplicit). NaN (the default): the base angle that levels the
+  // chain's chord, both end points at one height, so a gait_start pose is as high as its wave,
+  // whatever N (≤ A_p / sin²(η/2) link lengths, tested for N = 2…64); 0 lays link N flat (the
+  // shipped 6-link scenes' start).
+  double theta = std::numeric_limits<double>::quiet_NaN();
   std::vector<double> q;  // kExplicit: full q (nq)
   std::vector<double> v;  // kExplicit: full q̇ (nq), empty = rest
 };

@@ -97,8 +97,9 @@ int main(int argc, char** argv) {
     return app::exit_code(r.run);
   } catch (const app::BadInput& e) {
     return cli::bad_input(kTool, e.what());
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "%s: error: %s\n", kTool, e.what());
-    return app::kExitInternal;
+  } catch (...) {
+    // A value the driver or the runtime refuses (std::invalid_argument, config::ConfigError): 2;
+    // anything else: 1.
+    return cli::exit_for_current_exception(kTool);
   }
 }

@@ -143,9 +143,8 @@ int main(int argc, char** argv) {
                 << "); " << advice << '\n';
       return cli::kExitNumerical;
     }
-  } catch (const std::exception& e) {
-    std::cerr << "pedalwave_sim: error: " << e.what() << '\n';
-    return cli::kExitInternal;
+  } catch (...) {
+    return cli::exit_for_current_exception(kTool);  // a refused value: 2; cannot write DIR: 1
   }
   return cli::kExitOk;
 }

@@ -508,8 +508,7 @@ int main(int argc, char** argv) {
   } catch (const sk::UsageError& e) {
     std::cerr << "pedalwave_soak: error: " << e.what() << '\n';
     return sk::kExitUsage;
-  } catch (const std::exception& e) {
-    std::cerr << "pedalwave_soak: error: " << e.what() << '\n';
-    return sk::kExitFail;
+  } catch (...) {
+    return pedalwave::toolkit::cli::exit_for_current_exception("pedalwave_soak");
   }
 }

@@ -29,6 +29,7 @@
 #include "pedalwave/drivers/socketcan_driver.hpp"
 #include "pedalwave/model/kinematics.hpp"
 #include "pedalwave/runtime/consumer.hpp"
+#include "pedalwave/toolkit/cli.hpp"
 #include "pedalwave/toolkit/toolkit.hpp"
 #if PEDALWAVE_HAS_DDS
 #include "pedalwave/telemetry/dds_telemetry.hpp"
@@ -294,16 +295,9 @@ std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg
 }
 
 int exit_code(const runtime::RunResult& r) noexcept {
-  using runtime::ExitReason;
-  switch (r.reason) {
-    case ExitReason::kCycleLimit:
-    case ExitReason::kStopRequested:
-    case ExitReason::kSignal: return kExitNormal;
-    case ExitReason::kFault: return kExitFault;
-    case ExitReason::kEmergencyStop: return kExitEmergencyStop;
-    case ExitReason::kNone: break;
-  }
-  return kExitInternal;
+  // One mapping for the daemon and the tools that read its report (pedalwave_soak): by the
+  // reason's name, as the report writes it.
+  return toolkit::cli::exit_for_run_end(runtime::to_string(r.reason));
 }
 
 std::string folder_problem(const std::string& dir) {

@@ -62,6 +62,7 @@ inline constexpr int kExitBadInput = 2;       // configuration or command line r
 // 3 is reserved for the simulation tools: a run that went numerically wrong.
 inline constexpr int kExitFault = 4;          // a fault ended the run (safe stop)
 inline constexpr int kExitEmergencyStop = 5;  // an operator emergency stop ended the run
+// How the loop ended → the status (toolkit::cli::exit_for_run_end, shared with pedalwave_soak).
 int exit_code(const runtime::RunResult& r) noexcept;
 
 // A refused option found before anything starts (--report-json, --state-dir): kExitBadInput.

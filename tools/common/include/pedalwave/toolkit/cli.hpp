@@ -64,6 +64,17 @@ int run(std::string_view tool, Body&& body) {
   }
 }
 
+// How a run of the runtime ended (runtime::ExitReason, by the name the exit line and the JSON
+// report use: "cycle_limit", "stop_requested", "signal", "fault", "emergency_stop") → the exit
+// status: the daemon's (app::exit_code) and every tool that drives it (pedalwave_soak).
+// kExitInternal for "none" or an unknown name (the run did not end in order).
+inline int exit_for_run_end(std::string_view reason) {
+  if (reason == "cycle_limit" || reason == "stop_requested" || reason == "signal") return kExitOk;
+  if (reason == "fault") return kExitFault;
+  if (reason == "emergency_stop") return kExitEmergencyStop;
+  return kExitInternal;
+}
+
 // Parses the command line. nullopt: go on. Otherwise the exit status to return: 0 after --help
 // (printed), kExitBadInput after one error line. An unknown word where a subcommand is required
 // is named ("'dance' is not a subcommand: expected one of flat, friction, …"), not CLI11's "A

@@ -66,6 +66,15 @@ class RuntimeCli : public ::testing::Test {
     std::ofstream(p) << text;
     return p.string();
   }
+  // A daemon configuration on the simulated plant (lockstep clocks, no telemetry) with `extra`
+  // lines appended.
+  std::string sim_config(const std::string& name, const std::string& scene, const std::string& extra = "") const {
+    return write(name, "name: " + name + "\nrate_hz: 1000\n"
+                       "driver: {type: sim, scene: '" + scene + "', clock: lockstep}\n"
+                       "controller: {k_c: 0, pd_placement: module}\n"
+                       "realtime: {clock: lockstep, auto_start: true}\n"
+                       "observer: {enabled: true}\ntelemetry: {enabled: false}\n" + extra);
+  }
   fs::path dir_;
 };
 
@@ -163,4 +172,30 @@ TEST_F(RuntimeCli, HangupAndQuitEndInTheSafeStop) {
     EXPECT_NE(out().find("exit: signal, final mode SAFE_STOP, signal " + std::to_string(sig)), std::string::npos)
         << out();
   }
+}
+
+// Issue 15: a log_file in a folder that cannot be written is a FAIL line of --check and refused
+// at the start of a run (exit 2, one line), not found by the logger after the driver is up.
+TEST_F(RuntimeCli, LogFileThatCannotBeWrittenIsRefusedBeforeTheRun) {
+  const std::string flat = std::string(PEDALWAVE_CONFIG_DIR) + "/scenes/flat_high_friction.yaml";
+  const std::string bad = sim_config("bad_log.yaml", flat, "log_file: /proc/forbidden/events.log\n");
+  EXPECT_EQ(run("-c '" + bad + "' --check"), 2) << out() << err();
+  EXPECT_NE(out().find("FAIL  log_file /proc/forbidden/events.log can be written: cannot create the folder"),
+            std::string::npos) << out();
+  EXPECT_EQ(out().find("configuration valid"), std::string::npos) << out();
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_EQ(run("-c '" + bad + "' --duration 60"), 2) << out() << err();
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(10)) << "refused before the 60 s run";
+  EXPECT_EQ(err().rfind("pedalwave_runtime: error: " + bad +
+                            ": log_file = \"/proc/forbidden/events.log\": cannot create the folder",
+                        0),
+            0u) << err();
+  EXPECT_NE(err().find("expected a file that can be written"), std::string::npos) << err();
+  EXPECT_EQ(lines(err()), 1) << err();
+  EXPECT_EQ(out().find("pedalwave runtime '"), std::string::npos) << "nothing started\n" << out();
+  // A writable one passes (its folder is created, as the logger would).
+  const std::string log = (dir_ / "logs" / "events.log").string();
+  const std::string good = sim_config("good_log.yaml", flat, "log_file: '" + log + "'\n");
+  EXPECT_EQ(run("-c '" + good + "' --check"), 0) << out() << err();
+  EXPECT_NE(out().find("ok    log_file " + log + " can be written"), std::string::npos) << out();
 }

@@ -320,6 +320,17 @@ std::string folder_problem(const std::string& dir) {
   return "";
 }
 
+std::string file_problem(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::path p = std::filesystem::absolute(path, ec);
+  if (ec) return "cannot resolve the path (" + ec.message() + ")";
+  if (std::filesystem::is_directory(p, ec)) return "is a directory";
+  if (const std::string why = folder_problem(p.parent_path().string()); !why.empty()) return why;
+  if (std::filesystem::exists(p, ec) && ::access(p.c_str(), W_OK) != 0)
+    return "cannot write the file (" + std::string(std::strerror(errno)) + ")";
+  return "";
+}
+
 std::vector<CheckItem> preflight(const config::DaemonConfig& cfg, const DaemonOptions& opt) {
   std::vector<CheckItem> items;
   auto add = [&](bool ok, std::string what, std::string why) {
@@ -364,6 +375,10 @@ std::vector<CheckItem> preflight(const config::DaemonConfig& cfg, const DaemonOp
     const std::string why = folder_problem(opt.state_dir);
     add(why.empty(), "--state-dir " + opt.state_dir + " is a writable folder", why);
   }
+  if (!cfg.log_file.empty()) {  // the events log (spdlog appends to it, creating its folder)
+    const std::string why = file_problem(cfg.log_file);
+    add(why.empty(), "log_file " + cfg.log_file + " can be written", why);
+  }
   return items;
 }
 
@@ -371,6 +386,13 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   DaemonResult res;
   std::ostringstream log;
   std::ostream& out = opt.print ? std::cout : log;
+
+  // The events log is opened by the telemetry consumer once the driver is up: a log_file that
+  // cannot be written is refused now, before anything starts, not by the logger later.
+  if (!cfg.log_file.empty())
+    if (const std::string why = file_problem(cfg.log_file); !why.empty())
+      throw BadInput((cfg.source.empty() ? cfg.name : cfg.source) + ": log_file = \"" + cfg.log_file + "\": " + why +
+                     ": expected a file that can be written");
 
   // The report file is opened before anything starts: a path that cannot be written is refused
   // now, not discovered after a long run.

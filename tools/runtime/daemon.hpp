@@ -73,6 +73,9 @@ struct BadInput : std::runtime_error {
 // Why the folder `dir` cannot take output files ("" = it can): created when missing, then a file
 // is written into it and removed (a folder that exists but is read-only, /proc, is refused).
 std::string folder_problem(const std::string& dir);
+// Why the file `path` cannot be written or appended to ("" = it can): not a directory, its folder
+// as folder_problem, and when it exists it is writable. Nothing is written to the file.
+std::string file_problem(const std::string& path);
 
 // `pedalwave_runtime --check`: what can be checked without moving the robot. Each item is one
 // line "ok    <what>" or "FAIL  <what>: <why>".
@@ -86,7 +89,8 @@ struct CheckItem {
 // files of `opt` are writable (plots, report, state). Opens nothing that commands the robot.
 std::vector<CheckItem> preflight(const config::DaemonConfig& cfg, const DaemonOptions& opt);
 
-// Throws BadInput (before the run) for an unusable report path, plots folder or state folder.
+// Throws BadInput (before the run) for an unusable report path, plots folder, state folder or
+// log_file.
 DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& opt);
 
 // The onboard observer as the daemon wires it: the configured robot (one stiffness per joint),

@@ -15,6 +15,8 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 namespace {
 
@@ -65,6 +67,19 @@ class RuntimeCli : public ::testing::Test {
     const fs::path p = dir_ / name;
     std::ofstream(p) << text;
     return p.string();
+  }
+  // A scene: the shipped flat_high_friction.yaml with its `key:` lines replaced, e.g.
+  // {{"integrator", "{method: rk4, h: 0.05}"}}.
+  std::string flat_scene(const std::string& name,
+                         const std::vector<std::pair<std::string, std::string>>& lines) const {
+    std::string text = slurp(fs::path(PEDALWAVE_CONFIG_DIR) / "scenes" / "flat_high_friction.yaml");
+    for (const auto& [key, value] : lines) {
+      const std::size_t at = text.find("\n" + key + ":");
+      EXPECT_NE(at, std::string::npos) << key;
+      if (at == std::string::npos) continue;
+      text.replace(at + 1, text.find('\n', at + 1) - at - 1, key + ": " + value);
+    }
+    return write(name, text);
   }
   // A daemon configuration on the simulated plant (lockstep clocks, no telemetry) with `extra`
   // lines appended.
@@ -198,4 +213,38 @@ TEST_F(RuntimeCli, LogFileThatCannotBeWrittenIsRefusedBeforeTheRun) {
   const std::string good = sim_config("good_log.yaml", flat, "log_file: '" + log + "'\n");
   EXPECT_EQ(run("-c '" + good + "' --check"), 0) << out() << err();
   EXPECT_NE(out().find("ok    log_file " + log + " can be written"), std::string::npos) << out();
+}
+
+// Issue 15: the simulated plant's integrator step must fit the control period (pedalwave_sim's
+// rule): rk4 with h = 0.05 at 1 kHz is refused as the configuration, naming the scene's key and
+// the period, in every mode — not run into a blow-up that looks like a robot fault (exit 4).
+TEST_F(RuntimeCli, SceneStepLongerThanTheControlPeriodIsRefused) {
+  const std::string scene = flat_scene("coarse.yaml", {{"integrator", "{method: rk4, h: 0.05}"}});
+  const std::string cfg = sim_config("coarse_cfg.yaml", scene);
+  const std::string message = "pedalwave_runtime: error: " + scene +
+                              ": integrator.h = 0.05: expected a step ≤ the control period 1/rate_hz = 0.001 s "
+                              "(rate_hz 1000 in " + cfg + ")\n";
+  for (const char* mode : {"--check-config", "--check", "--duration 2"}) {
+    SCOPED_TRACE(mode);
+    EXPECT_EQ(run("-c '" + cfg + "' " + mode), 2) << out() << err();
+    EXPECT_EQ(err(), message);
+  }
+}
+
+// Issue 15: when the simulated plant itself goes numerically wrong (its state overflows: NaN, a
+// mass matrix that is no longer positive definite), the run ends as a simulation that went wrong
+// — exit 3, the stability limit and a step that works, no speed — not as a robot fault (exit 4).
+// RK4 at 1e-4 s against a ground damping of 1e5 N·s/m is ~150 times above its limit: the plant
+// overflows within the first periods.
+TEST_F(RuntimeCli, PlantThatGoesNumericallyWrongExits3WithTheStabilityAdvice) {
+  const std::string scene =
+      flat_scene("unstable.yaml", {{"ground", "{k: 350, d: 1.0e5, mu: 0.82, friction: regularized, v_s: 1.0e-3}"},
+                                   {"integrator", "{method: rk4, h: 1.0e-4}"}});
+  const std::string cfg = sim_config("unstable_cfg.yaml", scene);
+  EXPECT_EQ(run("-c '" + cfg + "' --duration 5"), 3) << out() << err();
+  EXPECT_NE(err().find("pedalwave_runtime: the simulated plant failed at t = "), std::string::npos) << err();
+  EXPECT_NE(err().find("use h ≤"), std::string::npos) << err();
+  EXPECT_NE(out().find("plant: "), std::string::npos) << out();
+  EXPECT_NE(out().find("stability: "), std::string::npos) << out();
+  EXPECT_EQ(out().find("forward speed"), std::string::npos) << out();
 }

@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cstring>
 
+#include <algorithm>
 #include <cmath>
 #include <exception>
 #include <cstdio>
@@ -29,6 +30,7 @@
 #include "pedalwave/drivers/socketcan_driver.hpp"
 #include "pedalwave/model/kinematics.hpp"
 #include "pedalwave/runtime/consumer.hpp"
+#include "pedalwave/simloop/plant_checks.hpp"
 #include "pedalwave/toolkit/cli.hpp"
 #include "pedalwave/toolkit/toolkit.hpp"
 #if PEDALWAVE_HAS_DDS
@@ -300,6 +302,33 @@ int exit_code(const runtime::RunResult& r) noexcept {
   return toolkit::cli::exit_for_run_end(runtime::to_string(r.reason));
 }
 
+int exit_code(const DaemonResult& r) noexcept {
+  return r.plant_status != model::StepStatus::kOk ? kExitNumerical : exit_code(r.run);
+}
+
+namespace {
+// The PD gains the plant's integrator sees (model::check): the module's when it applies the PD
+// law (the largest of each), none when the host does (the plant gets a torque held per period).
+model::ControlGains plant_gains(const control::PdParams& pd) {
+  if (pd.placement != control::PdPlacement::kModule) return {0.0, 0.0};
+  model::ControlGains g{0.0, 0.0};
+  for (double k : pd.K_p) g.K_p = std::max(g.K_p, k);
+  for (double k : pd.K_D) g.K_D = std::max(g.K_D, k);
+  return g;
+}
+}  // namespace
+
+std::string config_problem(const config::DaemonConfig& cfg) {
+  if (cfg.driver.kind != config::DriverKind::kSim) return "";
+  const model::IntegratorOptions& integ = cfg.driver.scene.integrator;
+  const std::string why = simloop::step_problem(integ, cfg.runtime.rt.rate_hz, "1/rate_hz");
+  if (why.empty()) return "";
+  std::ostringstream os;
+  os << cfg.driver.scene_path << ": integrator.h = " << integ.h << ": " << why << " (rate_hz "
+     << cfg.runtime.rt.rate_hz << " in " << (cfg.source.empty() ? cfg.name : cfg.source) << ")";
+  return os.str();
+}
+
 std::string folder_problem(const std::string& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -387,6 +416,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   std::ostringstream log;
   std::ostream& out = opt.print ? std::cout : log;
 
+  if (const std::string why = config_problem(cfg); !why.empty()) throw BadInput(why);
   // The events log is opened by the telemetry consumer once the driver is up: a log_file that
   // cannot be written is refused now, before anything starts, not by the logger later.
   if (!cfg.log_file.empty())
@@ -529,7 +559,21 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
     const drivers::SimRecording& rec = sim->recording();
     const model::Model& m = sim->sim().plant().model();
     model::Data data(m);
-    if (rec.count > 2) {
+    res.plant_status = sim->plant_status();
+    if (res.plant_status != model::StepStatus::kOk) {
+      // The plant went numerically wrong: the fault the runtime saw is the simulation's, its
+      // states before the failure are already wrong (no speed from them), and the step to use is
+      // what pedalwave_sim says after such a run.
+      res.plant_t = sim->sim().t();
+      res.plant_advice = simloop::stability_advice(cfg.driver.scene, plant_gains(cfg.controller.pd),
+                                                   cfg.driver.scene.integrator,
+                                                   cfg.duration > 0 ? cfg.duration : cfg.driver.scene.duration);
+      std::ostringstream os;
+      os << "plant: " << model::to_string(res.plant_status) << " at t = " << res.plant_t
+         << " s of simulated plant: the simulation went numerically wrong (no speed); stability: "
+         << res.plant_advice << "\n";
+      out << os.str();
+    } else if (rec.count > 2) {
       const auto nq = static_cast<std::size_t>(rec.nq);
       std::size_t i0 = 0;
       while (i0 + 1 < rec.count && rec.t[i0] < 2.0) ++i0;
@@ -545,8 +589,6 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
                     100 * res.forward_speed, rec.t[i0], rec.t[i1]);
       out << line;
     }
-    if (sim->plant_status() != model::StepStatus::kOk)
-      out << "plant: " << model::to_string(sim->plant_status()) << "\n";
     if (!opt.plots_dir.empty()) write_plant_plots(opt.plots_dir, *sim, cfg, out);
   }
   return res;

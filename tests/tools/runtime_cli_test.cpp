@@ -186,6 +186,10 @@ TEST_F(RuntimeCli, HangupAndQuitEndInTheSafeStop) {
     EXPECT_EQ(wait_for(pid), 0) << out() << err();
     EXPECT_NE(out().find("exit: signal, final mode SAFE_STOP, signal " + std::to_string(sig)), std::string::npos)
         << out();
+    // The event log names the signal that came (not "SIGINT/SIGTERM" for a SIGHUP).
+    const std::string name = sig == SIGTERM ? "SIGTERM" : sig == SIGHUP ? "SIGHUP" : "SIGQUIT";
+    EXPECT_NE(err().find("mode RUNNING → SAFE_STOP: stop signal " + name + " → safe stop"), std::string::npos) << err();
+    EXPECT_EQ(err().find("SIGINT/SIGTERM"), std::string::npos) << err();
   }
 }
 

@@ -494,7 +494,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
       << (cfg.driver.kind == config::DriverKind::kSim ? " (scene " + cfg.driver.scene.name + ")" : "")
       << (owned.faults ? ", " + std::to_string(owned.faults->faults().size()) + " injected fault(s)" : "")
       << ", " << cfg.runtime.rt.rate_hz << " Hz, "
-      << (cfg.duration > 0 ? std::to_string(cfg.duration) + " s" : std::string("until SIGINT/SIGTERM"))
+      << (cfg.duration > 0 ? std::to_string(cfg.duration) + " s" : std::string("until SIGINT/SIGTERM/SIGHUP/SIGQUIT"))
       << ", PD " << (cfg.controller.pd.placement == control::PdPlacement::kModule ? "module-side" : "host-side")
       << ", k_c = " << cfg.controller.admittance.k_c << ", observer "
       << (observer ? "on" : "off") << ", telemetry "

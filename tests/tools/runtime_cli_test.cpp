@@ -18,6 +18,8 @@
 #include <utility>
 #include <vector>
 
+#include "dds_domain_lease.hpp"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -252,3 +254,39 @@ TEST_F(RuntimeCli, PlantThatGoesNumericallyWrongExits3WithTheStabilityAdvice) {
   EXPECT_NE(out().find("stability: "), std::string::npos) << out();
   EXPECT_EQ(out().find("forward speed"), std::string::npos) << out();
 }
+
+// Issue 15: an operator's emergency stop — pedalwave_monitor --command estop over DDS, as a person
+// at another terminal sends it (README: the runtime's exit status table) — ends the daemon with
+// its own exit status 5, distinct from a normal end (0) and a fault (4).
+TEST_F(RuntimeCli, EmergencyStopFromTheMonitorExitsWithTheEStopStatus) {
+#ifndef PEDALWAVE_MONITOR_EXE
+  GTEST_SKIP() << "*** pedalwave_monitor not built (telemetry or tools off): cannot send the e-stop ***";
+#else
+  const std::uint32_t domain = pedalwave::test::dds_domain_id();
+  const std::string flat = std::string(PEDALWAVE_CONFIG_DIR) + "/scenes/flat_high_friction.yaml";
+  const std::string cfg = write(
+      "estop.yaml", "name: estop\nrate_hz: 1000\n"
+                    "driver: {type: sim, scene: '" + flat + "', clock: lockstep}\n"
+                    "controller: {k_c: 0, pd_placement: module}\n"
+                    "realtime: {clock: realtime, priority: 0, cpu: -1, lock_memory: false, auto_start: true}\n"
+                    "observer: {enabled: true}\n"
+                    "telemetry: {enabled: true, domain_id: " + std::to_string(domain) +
+                    ", interface: lo, commands: true}\n");
+  // A cap far beyond what the test needs: only the e-stop ends this run early.
+  const pid_t pid = start("-c '" + cfg + "' --duration 60");
+  for (int i = 0; i < 200 && out().find("pedalwave runtime '") == std::string::npos; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  ASSERT_NE(out().find("pedalwave runtime '"), std::string::npos) << out() << err();
+  const fs::path mon_log = dir_ / "monitor.log";
+  const std::string mon = std::string("'") + PEDALWAVE_MONITOR_EXE + "' --domain " + std::to_string(domain) +
+                          " --interface lo --no-view --once --duration 30 --command estop >'" + mon_log.string() +
+                          "' 2>&1";
+  const int mon_status = std::system(mon.c_str());
+  const auto t0 = std::chrono::steady_clock::now();
+  const int status = wait_for(pid);
+  EXPECT_EQ(status, 5) << "monitor status " << mon_status << ":\n" << slurp(mon_log) << "\n" << out() << err();
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30)) << "the e-stop ended the run";
+  EXPECT_NE(out().find("exit: emergency_stop, final mode SAFE_STOP"), std::string::npos) << out();
+#endif
+}
+

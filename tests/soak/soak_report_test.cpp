@@ -77,14 +77,14 @@ TEST(SoakVerdict, HealthyRunPassesAndEachFailureIsNamed) {
   events.push(Json::object().set("t", 3.2).set("kind", "fault").set("class", "encoder_stuck").set("joint", 3));
   faulty.set("events", events);
   auto v = sk::judge(faulty, 0, false);
-  EXPECT_EQ(v.code, sk::kExitFail);
+  EXPECT_EQ(v.code, sk::kExitFault);
   ASSERT_EQ(v.reasons.size(), 1u);
   EXPECT_EQ(v.reasons[0], "1 fault event(s) in the report");
 
   Json early = Json::parse(kReport);
   early.set("exit", Json::object().set("reason", "fault").set("fault", "stale_sensors"));
   v = sk::judge(early, 4, false);  // pedalwave_runtime's exit status for a fault
-  EXPECT_EQ(v.code, sk::kExitFail);
+  EXPECT_EQ(v.code, sk::kExitFault);
   ASSERT_EQ(v.reasons.size(), 3u);
   EXPECT_EQ(v.reasons[0], "the runtime exited with code 4");
   EXPECT_NE(v.reasons[1].find("'fault'"), std::string::npos);
@@ -95,6 +95,27 @@ TEST(SoakVerdict, HealthyRunPassesAndEachFailureIsNamed) {
   EXPECT_NE(v.reasons.at(0).find("no report"), std::string::npos);
   EXPECT_EQ(sk::judge(report, 0, true).code, sk::kExitFail);
   EXPECT_EQ(sk::judge(report, -1, false).reasons.at(0), "the runtime was killed by a signal");
+}
+
+// Issue 15: the soak's exit status says how the run it drove ended, with the codes of every tool
+// and the runtime's own mapping (a fault 4, an e-stop 5 — not 1, which is an internal error).
+TEST(SoakVerdict, TheExitStatusSaysHowTheRunEnded) {
+  auto ended = [](const std::string& reason, const std::string& fault) {
+    Json r = Json::parse(kReport);
+    r.set("exit", Json::object().set("reason", reason).set("fault", fault));
+    return r;
+  };
+  EXPECT_EQ(sk::kExitFault, 4);
+  EXPECT_EQ(sk::kExitEmergencyStop, 5);
+  EXPECT_EQ(sk::judge(ended("fault", "implausible"), 4, false).code, 4);
+  EXPECT_EQ(sk::judge(ended("emergency_stop", "none"), 5, false).code, 5);
+  // Stopped early by a signal it did not send, or interrupted: no verdict on a whole run.
+  EXPECT_EQ(sk::judge(ended("signal", "none"), 0, false).code, 1);
+  EXPECT_EQ(sk::judge(ended("signal", "none"), 0, true).code, 1);
+  // The runtime refused its configuration (no report): bad input.
+  EXPECT_EQ(sk::judge(Json(), 2, false).code, 2);
+  EXPECT_EQ(sk::judge(Json(), -1, false).code, 1);  // killed, no report
+  EXPECT_EQ(sk::judge(Json::parse(kReport), 0, false).code, 0);
 }
 
 TEST(SoakSummary, HistogramRowsSpanTheNonEmptyBinsWithLogBars) {

@@ -270,4 +270,46 @@ TEST_F(Paper, ABadSubcommandIsNamedAndAStairScenePathIsTakenAsGiven) {
   EXPECT_EQ(paper::scene_file(s, "rel/x.yaml"), std::filesystem::path("rel/x.yaml"));
 }
 
+// Issue 15: a scene file the reader refuses — a duplicate key, an empty file, a value out of range,
+// a faults: list — is bad input (exit 2, the reader's one line naming the file), not an internal
+// error (exit 1): as --stair-scene (read before any run) and as a scene read during the run
+// (--scenes).
+TEST_F(Paper, ARefusedSceneFileExitsTwoWithTheReadersLine) {
+  const std::string stair = slurp(kScenes / "stair.yaml");
+  std::string stiff = stair;
+  const std::string robot = "robot: {N: 6, joints: flexible}";
+  ASSERT_NE(stiff.find(robot), std::string::npos);
+  stiff.replace(stiff.find(robot), robot.size(), "robot: {N: 6, joints: flexible, K: 1e308}");
+  struct Case {
+    std::string name, text, message;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"dup.yaml", "name: dup\nrobot: {N: 6, N: 40}\n", ":2:15: robot.N = \"40\": expected each key once"},
+           {"empty.yaml", "\n", "the file is empty"},
+           {"stiff.yaml", stiff, "robot.K = \"1e308\": expected a number in (0, 1e+06] [N·m/rad]"},
+           {"faulty.yaml", stair + "faults:\n  - {type: torque_gain, joint: 1, value: 0}\n",
+            "expected no faults: list (pedalwave_paper does not inject them"}}) {
+    SCOPED_TRACE(c.name);
+    const fs::path f = dir_ / c.name;
+    std::ofstream(f) << c.text;
+    Exit e = run_exe("stair --quiet --no-plots --duration 0.5 --heights --stair-scene '" + f.string() + "' --out '" +
+                     (dir_ / "out").string() + "'");
+    EXPECT_EQ(e.code, 2) << e.err;
+    EXPECT_EQ(e.err.rfind("pedalwave_paper: error: " + f.string() + ":", 0), 0u) << e.err;
+    EXPECT_NE(e.err.find(c.message), std::string::npos) << e.err;
+    EXPECT_EQ(std::count(e.err.begin(), e.err.end(), '\n'), 1) << e.err;
+  }
+  // A scene of the run itself (flat reads flat_high_friction.yaml from --scenes).
+  const fs::path scenes = dir_ / "scenes";
+  fs::create_directories(scenes);
+  for (const char* n : {"stair", "flat_low_friction"}) fs::copy_file(kScenes / (std::string(n) + ".yaml"), scenes / (std::string(n) + ".yaml"));
+  std::ofstream(scenes / "flat_high_friction.yaml") << "name: dup\nname: again\n";
+  const Exit e = run_exe("flat --quiet --no-plots --duration 0.5 --scenes '" + scenes.string() + "' --out '" +
+                         (dir_ / "out").string() + "'");
+  EXPECT_EQ(e.code, 2) << e.err;
+  EXPECT_NE(e.err.find("pedalwave_paper: error: " + (scenes / "flat_high_friction.yaml").string() + ":2:"),
+            std::string::npos) << e.err;
+  EXPECT_EQ(std::count(e.err.begin(), e.err.end(), '\n'), 1) << e.err;
+}
+
 }  // namespace

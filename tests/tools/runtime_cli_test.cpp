@@ -15,6 +15,10 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
+
+#include "dds_domain_lease.hpp"
 
 namespace {
 
@@ -65,6 +69,28 @@ class RuntimeCli : public ::testing::Test {
     const fs::path p = dir_ / name;
     std::ofstream(p) << text;
     return p.string();
+  }
+  // A scene: the shipped flat_high_friction.yaml with its `key:` lines replaced, e.g.
+  // {{"integrator", "{method: rk4, h: 0.05}"}}.
+  std::string flat_scene(const std::string& name,
+                         const std::vector<std::pair<std::string, std::string>>& lines) const {
+    std::string text = slurp(fs::path(PEDALWAVE_CONFIG_DIR) / "scenes" / "flat_high_friction.yaml");
+    for (const auto& [key, value] : lines) {
+      const std::size_t at = text.find("\n" + key + ":");
+      EXPECT_NE(at, std::string::npos) << key;
+      if (at == std::string::npos) continue;
+      text.replace(at + 1, text.find('\n', at + 1) - at - 1, key + ": " + value);
+    }
+    return write(name, text);
+  }
+  // A daemon configuration on the simulated plant (lockstep clocks, no telemetry) with `extra`
+  // lines appended.
+  std::string sim_config(const std::string& name, const std::string& scene, const std::string& extra = "") const {
+    return write(name, "name: " + name + "\nrate_hz: 1000\n"
+                       "driver: {type: sim, scene: '" + scene + "', clock: lockstep}\n"
+                       "controller: {k_c: 0, pd_placement: module}\n"
+                       "realtime: {clock: lockstep, auto_start: true}\n"
+                       "observer: {enabled: true}\ntelemetry: {enabled: false}\n" + extra);
   }
   fs::path dir_;
 };
@@ -162,5 +188,105 @@ TEST_F(RuntimeCli, HangupAndQuitEndInTheSafeStop) {
     EXPECT_EQ(wait_for(pid), 0) << out() << err();
     EXPECT_NE(out().find("exit: signal, final mode SAFE_STOP, signal " + std::to_string(sig)), std::string::npos)
         << out();
+    // The event log names the signal that came (not "SIGINT/SIGTERM" for a SIGHUP).
+    const std::string name = sig == SIGTERM ? "SIGTERM" : sig == SIGHUP ? "SIGHUP" : "SIGQUIT";
+    EXPECT_NE(err().find("mode RUNNING → SAFE_STOP: stop signal " + name + " → safe stop"), std::string::npos) << err();
+    EXPECT_EQ(err().find("SIGINT/SIGTERM"), std::string::npos) << err();
   }
 }
+
+// Issue 15: a log_file in a folder that cannot be written is a FAIL line of --check and refused
+// at the start of a run (exit 2, one line), not found by the logger after the driver is up.
+TEST_F(RuntimeCli, LogFileThatCannotBeWrittenIsRefusedBeforeTheRun) {
+  const std::string flat = std::string(PEDALWAVE_CONFIG_DIR) + "/scenes/flat_high_friction.yaml";
+  const std::string bad = sim_config("bad_log.yaml", flat, "log_file: /proc/forbidden/events.log\n");
+  EXPECT_EQ(run("-c '" + bad + "' --check"), 2) << out() << err();
+  EXPECT_NE(out().find("FAIL  log_file /proc/forbidden/events.log can be written: cannot create the folder"),
+            std::string::npos) << out();
+  EXPECT_EQ(out().find("configuration valid"), std::string::npos) << out();
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_EQ(run("-c '" + bad + "' --duration 60"), 2) << out() << err();
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(10)) << "refused before the 60 s run";
+  EXPECT_EQ(err().rfind("pedalwave_runtime: error: " + bad +
+                            ": log_file = \"/proc/forbidden/events.log\": cannot create the folder",
+                        0),
+            0u) << err();
+  EXPECT_NE(err().find("expected a file that can be written"), std::string::npos) << err();
+  EXPECT_EQ(lines(err()), 1) << err();
+  EXPECT_EQ(out().find("pedalwave runtime '"), std::string::npos) << "nothing started\n" << out();
+  // A writable one passes (its folder is created, as the logger would).
+  const std::string log = (dir_ / "logs" / "events.log").string();
+  const std::string good = sim_config("good_log.yaml", flat, "log_file: '" + log + "'\n");
+  EXPECT_EQ(run("-c '" + good + "' --check"), 0) << out() << err();
+  EXPECT_NE(out().find("ok    log_file " + log + " can be written"), std::string::npos) << out();
+}
+
+// Issue 15: the simulated plant's integrator step must fit the control period (pedalwave_sim's
+// rule): rk4 with h = 0.05 at 1 kHz is refused as the configuration, naming the scene's key and
+// the period, in every mode — not run into a blow-up that looks like a robot fault (exit 4).
+TEST_F(RuntimeCli, SceneStepLongerThanTheControlPeriodIsRefused) {
+  const std::string scene = flat_scene("coarse.yaml", {{"integrator", "{method: rk4, h: 0.05}"}});
+  const std::string cfg = sim_config("coarse_cfg.yaml", scene);
+  const std::string message = "pedalwave_runtime: error: " + scene +
+                              ": integrator.h = 0.05: expected a step ≤ the control period 1/rate_hz = 0.001 s "
+                              "(rate_hz 1000 in " + cfg + ")\n";
+  for (const char* mode : {"--check-config", "--check", "--duration 2"}) {
+    SCOPED_TRACE(mode);
+    EXPECT_EQ(run("-c '" + cfg + "' " + mode), 2) << out() << err();
+    EXPECT_EQ(err(), message);
+  }
+}
+
+// Issue 15: when the simulated plant itself goes numerically wrong (its state overflows: NaN, a
+// mass matrix that is no longer positive definite), the run ends as a simulation that went wrong
+// — exit 3, the stability limit and a step that works, no speed — not as a robot fault (exit 4).
+// RK4 at 1e-4 s against a ground damping of 1e5 N·s/m is ~150 times above its limit: the plant
+// overflows within the first periods.
+TEST_F(RuntimeCli, PlantThatGoesNumericallyWrongExits3WithTheStabilityAdvice) {
+  const std::string scene =
+      flat_scene("unstable.yaml", {{"ground", "{k: 350, d: 1.0e5, mu: 0.82, friction: regularized, v_s: 1.0e-3}"},
+                                   {"integrator", "{method: rk4, h: 1.0e-4}"}});
+  const std::string cfg = sim_config("unstable_cfg.yaml", scene);
+  EXPECT_EQ(run("-c '" + cfg + "' --duration 5"), 3) << out() << err();
+  EXPECT_NE(err().find("pedalwave_runtime: the simulated plant failed at t = "), std::string::npos) << err();
+  EXPECT_NE(err().find("use h ≤"), std::string::npos) << err();
+  EXPECT_NE(out().find("plant: "), std::string::npos) << out();
+  EXPECT_NE(out().find("stability: "), std::string::npos) << out();
+  EXPECT_EQ(out().find("forward speed"), std::string::npos) << out();
+}
+
+// Issue 15: an operator's emergency stop — pedalwave_monitor --command estop over DDS, as a person
+// at another terminal sends it (README: the runtime's exit status table) — ends the daemon with
+// its own exit status 5, distinct from a normal end (0) and a fault (4).
+TEST_F(RuntimeCli, EmergencyStopFromTheMonitorExitsWithTheEStopStatus) {
+#ifndef PEDALWAVE_MONITOR_EXE
+  GTEST_SKIP() << "*** pedalwave_monitor not built (telemetry or tools off): cannot send the e-stop ***";
+#else
+  const std::uint32_t domain = pedalwave::test::dds_domain_id();
+  const std::string flat = std::string(PEDALWAVE_CONFIG_DIR) + "/scenes/flat_high_friction.yaml";
+  const std::string cfg = write(
+      "estop.yaml", "name: estop\nrate_hz: 1000\n"
+                    "driver: {type: sim, scene: '" + flat + "', clock: lockstep}\n"
+                    "controller: {k_c: 0, pd_placement: module}\n"
+                    "realtime: {clock: realtime, priority: 0, cpu: -1, lock_memory: false, auto_start: true}\n"
+                    "observer: {enabled: true}\n"
+                    "telemetry: {enabled: true, domain_id: " + std::to_string(domain) +
+                    ", interface: lo, commands: true}\n");
+  // A cap far beyond what the test needs: only the e-stop ends this run early.
+  const pid_t pid = start("-c '" + cfg + "' --duration 60");
+  for (int i = 0; i < 200 && out().find("pedalwave runtime '") == std::string::npos; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  ASSERT_NE(out().find("pedalwave runtime '"), std::string::npos) << out() << err();
+  const fs::path mon_log = dir_ / "monitor.log";
+  const std::string mon = std::string("'") + PEDALWAVE_MONITOR_EXE + "' --domain " + std::to_string(domain) +
+                          " --interface lo --no-view --once --duration 30 --command estop >'" + mon_log.string() +
+                          "' 2>&1";
+  const int mon_status = std::system(mon.c_str());
+  const auto t0 = std::chrono::steady_clock::now();
+  const int status = wait_for(pid);
+  EXPECT_EQ(status, 5) << "monitor status " << mon_status << ":\n" << slurp(mon_log) << "\n" << out() << err();
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30)) << "the e-stop ended the run";
+  EXPECT_NE(out().find("exit: emergency_stop, final mode SAFE_STOP"), std::string::npos) << out();
+#endif
+}
+

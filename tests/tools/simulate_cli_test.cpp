@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -298,6 +299,28 @@ TEST_F(SimulateCli, FailedRunPrintsNoSpeedAndGivesTheStabilityLimit) {
   EXPECT_NE(r.stdout_text.find("stability:        h = "), std::string::npos) << r.stdout_text;
   EXPECT_NE(r.stderr_text.find("stability limit"), std::string::npos) << r.stderr_text;
   EXPECT_NE(r.stderr_text.find("use h ≤"), std::string::npos) << r.stderr_text;
+  // Issue 15: only finite, meaningful values after the failure — no nan, inf or absurd numbers
+  // (the diverging states' energy, motor work, penetration: "last good -nan", "motors -inf",
+  // "max penetration 5.81e+143 mm") — but the time of the last good step.
+  // Values print as nan, -nan, inf, -inf (lowercase; the status text "NaN/Inf" names the failure).
+  const std::regex non_finite(R"((^|[^A-Za-z])[-+]?(nan|inf)([^A-Za-z]|$))");
+  const std::regex absurd(R"([0-9]e\+0*[1-9][0-9]+)");  // ≥ 1e10 in any unit
+  for (const std::string* text : {&r.stdout_text, &r.stderr_text}) {
+    EXPECT_FALSE(std::regex_search(*text, non_finite)) << *text;
+    EXPECT_FALSE(std::regex_search(*text, absurd)) << *text;
+  }
+  EXPECT_NE(r.stdout_text.find("the last good step ended at t = "), std::string::npos) << r.stdout_text;
+  // The advised step works: the same run with it completes.
+  const std::string use = "use h ≤ ";
+  const std::size_t at = r.stderr_text.find(use);
+  ASSERT_NE(at, std::string::npos) << r.stderr_text;
+  const double h = std::stod(r.stderr_text.substr(at + use.size()));
+  ASSERT_TRUE(h > 0 && h <= 0.01) << r.stderr_text;
+  std::ostringstream args;
+  args << "'" << kScenes << "flat_high_friction.yaml' --integrator euler --h " << h
+       << " --rate 100 --duration 5 --out '" << (dir_ / "advised").string() << "' --no-plots --quiet";
+  const Result advised = run_sim(args.str(), dir_);
+  EXPECT_EQ(advised.code, 0) << args.str() << "\n" << advised.stderr_text;
 }
 
 // A start inside the ground: the energy line says what the ground holds at t = 0.

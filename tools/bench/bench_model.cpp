@@ -22,6 +22,7 @@
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/model/dynamics.hpp"
 #include "pedalwave/model/plant.hpp"
+#include "pedalwave/toolkit/cli.hpp"
 #include "pedalwave/toolkit/table.hpp"
 
 namespace {
@@ -304,7 +305,9 @@ void print_summary(const Collector& c, const std::vector<EffectCase>& effects) {
 
 int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  // An option Google Benchmark does not take (it printed "<argv0>: error: unrecognized
+  // command-line flag: …" for each) is a bad command line: exit 2, as in every tool.
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return pedalwave::toolkit::cli::kExitBadInput;
 
   for (bool flexible : {true, false})
     for (int N : kSizes)

@@ -4,7 +4,10 @@
 //   pedalwave_plotdemo [folder]        (default: plotdemo)
 //
 // The data are made up (a travelling wave on a 6-link chain, power-law error curves); they only
-// exercise the plots. Exit status 0 when every file was written.
+// exercise the plots. Exit status 0 when every file was written; 2 for a bad command line (an
+// unknown option, more than one folder), 1 when a file cannot be written (toolkit/cli.hpp).
+#include <CLI/CLI.hpp>
+
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -14,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "pedalwave/toolkit/cli.hpp"
 #include "pedalwave/toolkit/toolkit.hpp"
 
 namespace tk = pedalwave::toolkit;
@@ -54,8 +58,12 @@ void report(const tk::SaveResult& r) { std::cout << r.note << '\n'; }
 }  // namespace
 
 int main(int argc, char** argv) {
+  CLI::App app{"pedalwave_plotdemo: one example of each plot kind (and a CSV and a table) from synthetic data"};
+  std::string folder = "plotdemo";
+  app.add_option("folder", folder, "output folder")->capture_default_str();
+  if (const auto rc = tk::cli::parse(app, argc, argv, "pedalwave_plotdemo")) return *rc;
   try {
-    const std::filesystem::path dir = argc > 1 ? argv[1] : "plotdemo";
+    const std::filesystem::path dir = folder;
     std::filesystem::create_directories(dir);
 
     // 1. Work-precision: error against cost for three integrators, 1 mm tolerance.
@@ -240,7 +248,7 @@ int main(int argc, char** argv) {
     }
     return 0;
   } catch (const std::exception& e) {
-    std::cerr << "pedalwave_plotdemo: " << e.what() << '\n';
-    return 1;
+    std::cerr << "pedalwave_plotdemo: error: " << e.what() << '\n';
+    return tk::cli::kExitInternal;
   }
 }

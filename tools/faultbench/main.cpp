@@ -349,30 +349,34 @@ int main(int argc, char** argv) {
   app.add_option("--trace", trace_s, "print a trace of the flat scene for this long [s]");
   app.add_flag("--no-noise", no_noise, "sensor noise off");
   if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_faultbench")) return *rc;
-  if (trace_s > 0) return trace(trace_s, !no_noise);
-  if (calib) return calibrate(minutes, jobs);
-  if (coupling_s > 0) {
-    std::printf("| scene | max \\|n I_r θ̈_j\\| [N·m] | rms [N·m] |\n|---|---|---|\n");
-    for (const char* sc : {"flat_high_friction", "stair"}) coupling(sc, coupling_s);
+  // What escapes (a shipped scene the reader refuses, a refused value: 2; else 1) is one line, not
+  // std::terminate.
+  return pedalwave::toolkit::cli::run("pedalwave_faultbench", [&]() -> int {
+    if (trace_s > 0) return trace(trace_s, !no_noise);
+    if (calib) return calibrate(minutes, jobs);
+    if (coupling_s > 0) {
+      std::printf("| scene | max \\|n I_r θ̈_j\\| [N·m] | rms [N·m] |\n|---|---|---|\n");
+      for (const char* sc : {"flat_high_friction", "stair"}) coupling(sc, coupling_s);
+      return 0;
+    }
+    if (trials <= 0 && nominal_minutes <= 0 && timing_cycles <= 0) {
+      std::fprintf(stderr, "nothing to do: give --trials, --nominal-minutes or --timing-cycles\n");
+      return 2;
+    }
+    if (trials > 0) {
+      std::printf("## Fault-injection campaign: %d random injections per fault and scene (flat_high_friction, stair), onset uniform in 2…8 s, joint uniform, sensor noise on\n\n", trials);
+      print_campaign(campaign(trials, jobs, seed, verbose, only));
+      std::printf("\n");
+    }
+    if (nominal_minutes > 0) {
+      std::printf("## Nominal runs (false alarms)\n\n");
+      nominal(nominal_minutes, jobs);
+      std::printf("\n");
+    }
+    if (timing_cycles > 0) {
+      std::printf("## Observer compute time per cycle (one run, %d cycles each, thread CPU time, this machine)\n\n", timing_cycles);
+      timing(timing_cycles);
+    }
     return 0;
-  }
-  if (trials <= 0 && nominal_minutes <= 0 && timing_cycles <= 0) {
-    std::fprintf(stderr, "nothing to do: give --trials, --nominal-minutes or --timing-cycles\n");
-    return 2;
-  }
-  if (trials > 0) {
-    std::printf("## Fault-injection campaign: %d random injections per fault and scene (flat_high_friction, stair), onset uniform in 2…8 s, joint uniform, sensor noise on\n\n", trials);
-    print_campaign(campaign(trials, jobs, seed, verbose, only));
-    std::printf("\n");
-  }
-  if (nominal_minutes > 0) {
-    std::printf("## Nominal runs (false alarms)\n\n");
-    nominal(nominal_minutes, jobs);
-    std::printf("\n");
-  }
-  if (timing_cycles > 0) {
-    std::printf("## Observer compute time per cycle (one run, %d cycles each, thread CPU time, this machine)\n\n", timing_cycles);
-    timing(timing_cycles);
-  }
-  return 0;
+  });
 }

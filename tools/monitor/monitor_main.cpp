@@ -104,9 +104,9 @@ int main(int argc, char** argv) {
   try {
     sub = std::make_unique<telemetry::TelemetrySubscriber>(cfg);
     if (!record.empty()) recorder = std::make_unique<telemetry::CsvRecorder>(record);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "pedalwave_monitor: %s\n", e.what());
-    return 1;
+  } catch (...) {
+    // A refused --interface, --domain or --record value (std::invalid_argument): 2; else 1.
+    return pedalwave::toolkit::cli::exit_for_current_exception("pedalwave_monitor");
   }
   sub->add_listener(state);
   if (recorder) sub->add_listener(*recorder);

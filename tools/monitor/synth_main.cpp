@@ -113,9 +113,9 @@ int main(int argc, char** argv) {
                 static_cast<unsigned long long>(st.joint_state),
                 static_cast<unsigned long long>(st.fault_events),
                 static_cast<unsigned long long>(st.write_errors));
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "pedalwave_telemetry_synth: %s\n", e.what());
-    return 1;
+  } catch (...) {
+    // A refused option value (std::invalid_argument from the telemetry configuration): 2; else 1.
+    return pedalwave::toolkit::cli::exit_for_current_exception("pedalwave_telemetry_synth");
   }
   return 0;
 }

@@ -9,8 +9,9 @@
 //   pedalwave_paper all         [--duration 60] [--from --to --step --checks --check-h]
 // Every subcommand also takes --out DIR (default out/paper), --scenes DIR, --jobs N, --integrator
 // NAME, --h s, --rate Hz, --no-plots, --quiet. Figures (SVG + PNG) and a Markdown fragment go to
-// DIR; the numbers are printed. Exit codes: 0 done; 2 bad input (one line on stderr); 1 other
-// errors (e.g. cannot write DIR).
+// DIR; the numbers are printed. Exit codes: 0 done; 2 bad input (one line on stderr: an option, or
+// a scene file the reader refuses, also one read during the run); 1 other errors (e.g. cannot
+// write DIR).
 #include <CLI/CLI.hpp>
 
 #include <cmath>
@@ -159,6 +160,7 @@ int main(int argc, char** argv) {
     (void)paper::sweep_grid(sw.from, sw.to, sw.step);
     if (const auto f = paper::scene_file(s, s.stair_scene); !std::filesystem::exists(f))
       throw std::invalid_argument("--stair-scene " + s.stair_scene + ": no scene file " + f.string());
+    (void)paper::load(s, s.stair_scene);  // read now: a refused file is one line before any run
     for (double K : se.K)
       if (!(K > 0)) throw std::invalid_argument("--K " + std::to_string(K) + ": expected > 0 [N·m/rad]");
     for (double I : se.I_r)
@@ -197,12 +199,10 @@ int main(int argc, char** argv) {
       const paper::AllResult r = paper::all(s, o);
       std::cout << '\n' << r.table;
     }
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "pedalwave_paper: error: " << e.what() << '\n';
-    return kExitBadInput;
-  } catch (const std::exception& e) {
-    std::cerr << "pedalwave_paper: error: " << e.what() << '\n';
-    return 1;
+  } catch (...) {
+    // A scene file read during the run (--stair-scene, the shipped scenes) that the reader refuses
+    // (config::ConfigError) or a value refused later (std::invalid_argument): exit 2, one line.
+    return cli::exit_for_current_exception("pedalwave_paper");
   }
-  return 0;
+  return cli::kExitOk;
 }

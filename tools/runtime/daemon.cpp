@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cstring>
 
+#include <algorithm>
 #include <cmath>
 #include <exception>
 #include <cstdio>
@@ -29,6 +30,8 @@
 #include "pedalwave/drivers/socketcan_driver.hpp"
 #include "pedalwave/model/kinematics.hpp"
 #include "pedalwave/runtime/consumer.hpp"
+#include "pedalwave/simloop/plant_checks.hpp"
+#include "pedalwave/toolkit/cli.hpp"
 #include "pedalwave/toolkit/toolkit.hpp"
 #if PEDALWAVE_HAS_DDS
 #include "pedalwave/telemetry/dds_telemetry.hpp"
@@ -294,16 +297,36 @@ std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg
 }
 
 int exit_code(const runtime::RunResult& r) noexcept {
-  using runtime::ExitReason;
-  switch (r.reason) {
-    case ExitReason::kCycleLimit:
-    case ExitReason::kStopRequested:
-    case ExitReason::kSignal: return kExitNormal;
-    case ExitReason::kFault: return kExitFault;
-    case ExitReason::kEmergencyStop: return kExitEmergencyStop;
-    case ExitReason::kNone: break;
-  }
-  return kExitInternal;
+  // One mapping for the daemon and the tools that read its report (pedalwave_soak): by the
+  // reason's name, as the report writes it.
+  return toolkit::cli::exit_for_run_end(runtime::to_string(r.reason));
+}
+
+int exit_code(const DaemonResult& r) noexcept {
+  return r.plant_status != model::StepStatus::kOk ? kExitNumerical : exit_code(r.run);
+}
+
+namespace {
+// The PD gains the plant's integrator sees (model::check): the module's when it applies the PD
+// law (the largest of each), none when the host does (the plant gets a torque held per period).
+model::ControlGains plant_gains(const control::PdParams& pd) {
+  if (pd.placement != control::PdPlacement::kModule) return {0.0, 0.0};
+  model::ControlGains g{0.0, 0.0};
+  for (double k : pd.K_p) g.K_p = std::max(g.K_p, k);
+  for (double k : pd.K_D) g.K_D = std::max(g.K_D, k);
+  return g;
+}
+}  // namespace
+
+std::string config_problem(const config::DaemonConfig& cfg) {
+  if (cfg.driver.kind != config::DriverKind::kSim) return "";
+  const model::IntegratorOptions& integ = cfg.driver.scene.integrator;
+  const std::string why = simloop::step_problem(integ, cfg.runtime.rt.rate_hz, "1/rate_hz");
+  if (why.empty()) return "";
+  std::ostringstream os;
+  os << cfg.driver.scene_path << ": integrator.h = " << integ.h << ": " << why << " (rate_hz "
+     << cfg.runtime.rt.rate_hz << " in " << (cfg.source.empty() ? cfg.name : cfg.source) << ")";
+  return os.str();
 }
 
 std::string folder_problem(const std::string& dir) {
@@ -323,6 +346,17 @@ std::string folder_problem(const std::string& dir) {
     }
   }
   std::filesystem::remove(probe, ec);
+  return "";
+}
+
+std::string file_problem(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::path p = std::filesystem::absolute(path, ec);
+  if (ec) return "cannot resolve the path (" + ec.message() + ")";
+  if (std::filesystem::is_directory(p, ec)) return "is a directory";
+  if (const std::string why = folder_problem(p.parent_path().string()); !why.empty()) return why;
+  if (std::filesystem::exists(p, ec) && ::access(p.c_str(), W_OK) != 0)
+    return "cannot write the file (" + std::string(std::strerror(errno)) + ")";
   return "";
 }
 
@@ -370,6 +404,10 @@ std::vector<CheckItem> preflight(const config::DaemonConfig& cfg, const DaemonOp
     const std::string why = folder_problem(opt.state_dir);
     add(why.empty(), "--state-dir " + opt.state_dir + " is a writable folder", why);
   }
+  if (!cfg.log_file.empty()) {  // the events log (spdlog appends to it, creating its folder)
+    const std::string why = file_problem(cfg.log_file);
+    add(why.empty(), "log_file " + cfg.log_file + " can be written", why);
+  }
   return items;
 }
 
@@ -377,6 +415,14 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   DaemonResult res;
   std::ostringstream log;
   std::ostream& out = opt.print ? std::cout : log;
+
+  if (const std::string why = config_problem(cfg); !why.empty()) throw BadInput(why);
+  // The events log is opened by the telemetry consumer once the driver is up: a log_file that
+  // cannot be written is refused now, before anything starts, not by the logger later.
+  if (!cfg.log_file.empty())
+    if (const std::string why = file_problem(cfg.log_file); !why.empty())
+      throw BadInput((cfg.source.empty() ? cfg.name : cfg.source) + ": log_file = \"" + cfg.log_file + "\": " + why +
+                     ": expected a file that can be written");
 
   // The report file is opened before anything starts: a path that cannot be written is refused
   // now, not discovered after a long run.
@@ -448,7 +494,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
       << (cfg.driver.kind == config::DriverKind::kSim ? " (scene " + cfg.driver.scene.name + ")" : "")
       << (owned.faults ? ", " + std::to_string(owned.faults->faults().size()) + " injected fault(s)" : "")
       << ", " << cfg.runtime.rt.rate_hz << " Hz, "
-      << (cfg.duration > 0 ? std::to_string(cfg.duration) + " s" : std::string("until SIGINT/SIGTERM"))
+      << (cfg.duration > 0 ? std::to_string(cfg.duration) + " s" : std::string("until SIGINT/SIGTERM/SIGHUP/SIGQUIT"))
       << ", PD " << (cfg.controller.pd.placement == control::PdPlacement::kModule ? "module-side" : "host-side")
       << ", k_c = " << cfg.controller.admittance.k_c << ", observer "
       << (observer ? "on" : "off") << ", telemetry "
@@ -513,7 +559,21 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
     const drivers::SimRecording& rec = sim->recording();
     const model::Model& m = sim->sim().plant().model();
     model::Data data(m);
-    if (rec.count > 2) {
+    res.plant_status = sim->plant_status();
+    if (res.plant_status != model::StepStatus::kOk) {
+      // The plant went numerically wrong: the fault the runtime saw is the simulation's, its
+      // states before the failure are already wrong (no speed from them), and the step to use is
+      // what pedalwave_sim says after such a run.
+      res.plant_t = sim->sim().t();
+      res.plant_advice = simloop::stability_advice(cfg.driver.scene, plant_gains(cfg.controller.pd),
+                                                   cfg.driver.scene.integrator,
+                                                   cfg.duration > 0 ? cfg.duration : cfg.driver.scene.duration);
+      std::ostringstream os;
+      os << "plant: " << model::to_string(res.plant_status) << " at t = " << res.plant_t
+         << " s of simulated plant: the simulation went numerically wrong (no speed); stability: "
+         << res.plant_advice << "\n";
+      out << os.str();
+    } else if (rec.count > 2) {
       const auto nq = static_cast<std::size_t>(rec.nq);
       std::size_t i0 = 0;
       while (i0 + 1 < rec.count && rec.t[i0] < 2.0) ++i0;
@@ -529,8 +589,6 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
                     100 * res.forward_speed, rec.t[i0], rec.t[i1]);
       out << line;
     }
-    if (sim->plant_status() != model::StepStatus::kOk)
-      out << "plant: " << model::to_string(sim->plant_status()) << "\n";
     if (!opt.plots_dir.empty()) write_plant_plots(opt.plots_dir, *sim, cfg, out);
   }
   return res;

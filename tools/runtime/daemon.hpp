@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "pedalwave/config/daemon.hpp"
+#include "pedalwave/model/integrators.hpp"
 #include "pedalwave/runtime/run_events.hpp"
 #include "pedalwave/runtime/runtime.hpp"
 
@@ -50,6 +51,11 @@ struct DaemonResult {
   bool previous_run_crashed = false;  // a marker of an earlier run was found (state_dir set)
   std::string start_note;             // what the daemon said about it at start (empty = nothing)
   bool marked_running = false;        // this run wrote the marker (it was seen RUNNING)
+  // The simulated plant (driver: sim) went numerically wrong (NaN, singular mass matrix): the
+  // fault that ended the run is the plant's, not the robot's. kOk otherwise and on a bus.
+  model::StepStatus plant_status = model::StepStatus::kOk;
+  double plant_t = 0.0;        // the plant's last good time [s] (plant_status not kOk)
+  std::string plant_advice;    // its stability limit and a step that works (simloop::stability_advice)
 };
 
 // Exit status of pedalwave_runtime (README, "Exit status of pedalwave_runtime"; DEPLOY.md,
@@ -59,10 +65,14 @@ struct DaemonResult {
 inline constexpr int kExitNormal = 0;         // duration reached, SIGINT/SIGTERM or a stop request
 inline constexpr int kExitInternal = 1;       // internal error (an exception outside the loop)
 inline constexpr int kExitBadInput = 2;       // configuration or command line refused
-// 3 is reserved for the simulation tools: a run that went numerically wrong.
+inline constexpr int kExitNumerical = 3;      // the simulated plant (driver: sim) went numerically wrong
 inline constexpr int kExitFault = 4;          // a fault ended the run (safe stop)
 inline constexpr int kExitEmergencyStop = 5;  // an operator emergency stop ended the run
+// How the loop ended → the status (toolkit::cli::exit_for_run_end, shared with pedalwave_soak).
 int exit_code(const runtime::RunResult& r) noexcept;
+// The same, but kExitNumerical when the simulated plant went numerically wrong (whatever fault
+// the runtime then saw in its measurements).
+int exit_code(const DaemonResult& r) noexcept;
 
 // A refused option found before anything starts (--report-json, --state-dir): kExitBadInput.
 struct BadInput : std::runtime_error {
@@ -72,6 +82,16 @@ struct BadInput : std::runtime_error {
 // Why the folder `dir` cannot take output files ("" = it can): created when missing, then a file
 // is written into it and removed (a folder that exists but is read-only, /proc, is refused).
 std::string folder_problem(const std::string& dir);
+// Why the file `path` cannot be written or appended to ("" = it can): not a directory, its folder
+// as folder_problem, and when it exists it is writable. Nothing is written to the file.
+std::string file_problem(const std::string& path);
+
+// What the configuration cannot be run with, by the rules of the tools ("" = nothing); the file
+// alone decides it (--check-config too). On the simulated plant: a fixed integrator step longer
+// than the control period (simloop::step_problem, pedalwave_sim's rule), e.g.
+//   "scenes/x.yaml: integrator.h = 0.05: expected a step ≤ the control period 1/rate_hz = 0.001 s
+//    (rate_hz in robot.yaml)"
+std::string config_problem(const config::DaemonConfig& cfg);
 
 // `pedalwave_runtime --check`: what can be checked without moving the robot. Each item is one
 // line "ok    <what>" or "FAIL  <what>: <why>".
@@ -85,7 +105,8 @@ struct CheckItem {
 // files of `opt` are writable (plots, report, state). Opens nothing that commands the robot.
 std::vector<CheckItem> preflight(const config::DaemonConfig& cfg, const DaemonOptions& opt);
 
-// Throws BadInput (before the run) for an unusable report path, plots folder or state folder.
+// Throws BadInput (before the run) for an unusable report path, plots folder, state folder or
+// log_file, and for a config_problem.
 DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& opt);
 
 // The onboard observer as the daemon wires it: the configured robot (one stiffness per joint),

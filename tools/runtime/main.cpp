@@ -20,13 +20,15 @@ constexpr const char* kExitTable =
     "  0  normal end: the duration reached, or an operator stop (SIGTERM/SIGINT/SIGHUP/SIGQUIT)\n"
     "  1  internal error (an exception outside the loop); under systemd: restarted, into READY\n"
     "  2  bad input: the configuration or the command line was refused\n"
+    "  3  the simulated plant (driver: sim) went numerically wrong: its stability limit and a step\n"
+    "     that works are printed\n"
     "  4  a fault ended the run (safe stop: torque off)\n"
     "  5  an operator emergency stop ended the run\n"
-    "  (3 is reserved for the simulation tools: a run that went numerically wrong)\n"
     "With --state-dir, a run that walked and did not end in order (crash, kill, power loss)\n"
     "leaves <dir>/running behind; the next run then stays READY until an operator start command.";
 namespace cli = pedalwave::toolkit::cli;
 static_assert(pedalwave::app::kExitBadInput == cli::kExitBadInput && pedalwave::app::kExitFault == cli::kExitFault &&
+              pedalwave::app::kExitNumerical == cli::kExitNumerical &&
               pedalwave::app::kExitEmergencyStop == cli::kExitEmergencyStop &&
               pedalwave::app::kExitInternal == cli::kExitInternal);
 constexpr const char* kTool = "pedalwave_runtime";
@@ -62,6 +64,9 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     return cli::bad_input(kTool, e.what());
   }
+  // What the file cannot be run with (a sim scene's step longer than the control period): refused
+  // in every mode, --check-config too.
+  if (const std::string why = app::config_problem(cfg); !why.empty()) return cli::bad_input(kTool, why);
   if (duration) {  // nan, inf, negative, 1e308 and less than one period are refused
     if (const std::string why = pedalwave::config::duration_problem(*duration, cfg.runtime.rt.rate_hz);
         !why.empty()) {
@@ -94,11 +99,15 @@ int main(int argc, char** argv) {
   }
   try {
     const auto r = app::run_daemon(cfg, opt);
-    return app::exit_code(r.run);
+    if (r.plant_status != pedalwave::model::StepStatus::kOk)  // numerically wrong, not a robot fault
+      std::fprintf(stderr, "%s: the simulated plant failed at t = %g s: %s; %s\n", kTool, r.plant_t,
+                   std::string(pedalwave::model::to_string(r.plant_status)).c_str(), r.plant_advice.c_str());
+    return app::exit_code(r);
   } catch (const app::BadInput& e) {
     return cli::bad_input(kTool, e.what());
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "%s: error: %s\n", kTool, e.what());
-    return app::kExitInternal;
+  } catch (...) {
+    // A value the driver or the runtime refuses (std::invalid_argument, config::ConfigError): 2;
+    // anything else: 1.
+    return cli::exit_for_current_exception(kTool);
   }
 }

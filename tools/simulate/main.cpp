@@ -19,6 +19,7 @@
 
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/model/stability.hpp"
+#include "pedalwave/simloop/plant_checks.hpp"
 #include "pedalwave/toolkit/cli.hpp"
 #include "sim_run.hpp"
 
@@ -87,11 +88,11 @@ int main(int argc, char** argv) {
                                   std::string(model::to_string(cfg.integ.method)) + ")");
     if (rtol) cfg.integ.rtol = *rtol;
     // The plant advances one control period per step of the loop: a longer step is never taken
-    // (the summary would say h = 10 s while 1 ms steps ran).
-    if (!model::is_adaptive(cfg.integ.method) && cfg.integ.h > (1.0 / rate) * (1 + 1e-9)) {
+    // (the summary would say h = 10 s while 1 ms steps ran). The daemon's simulated plant applies
+    // the same rule (simloop/plant_checks.hpp).
+    if (const std::string why = pedalwave::simloop::step_problem(cfg.integ, rate); !why.empty()) {
       std::ostringstream os;
-      os << (h ? "--h " : cfg.scene.source + ": integrator.h = ") << cfg.integ.h
-         << ": expected a step ≤ the control period 1/rate = " << 1.0 / rate << " s";
+      os << (h ? "--h " : cfg.scene.source + ": integrator.h = ") << cfg.integ.h << ": " << why;
       throw std::invalid_argument(os.str());
     }
     model::validate(cfg.integ);
@@ -119,13 +120,8 @@ int main(int argc, char** argv) {
     // step that would work (model/stability), in the summary and on stderr.
     std::string advice;
     if (failed) {
-      try {
-        const auto gains = cfg.loop.controller ? model::ControlGains{} : model::ControlGains{0.0, 0.0};
-        const model::StabilityCheck chk = model::check(cfg.scene, gains, cfg.integ, cfg.scene.duration);
-        advice = model::stability_message(chk.report, cfg.integ.method, cfg.integ.h);
-      } catch (const std::exception& e) {
-        advice = std::string("no stability prediction: ") + e.what();
-      }
+      const auto gains = cfg.loop.controller ? model::ControlGains{} : model::ControlGains{0.0, 0.0};
+      advice = pedalwave::simloop::stability_advice(cfg.scene, gains, cfg.integ, cfg.scene.duration);
       summary += "stability:        " + advice + "\n";
     }
     {
@@ -143,9 +139,8 @@ int main(int argc, char** argv) {
                 << "); " << advice << '\n';
       return cli::kExitNumerical;
     }
-  } catch (const std::exception& e) {
-    std::cerr << "pedalwave_sim: error: " << e.what() << '\n';
-    return cli::kExitInternal;
+  } catch (...) {
+    return cli::exit_for_current_exception(kTool);  // a refused value: 2; cannot write DIR: 1
   }
   return cli::kExitOk;
 }

@@ -250,23 +250,34 @@ std::string summary_text(const RunConfig& c, const RunResult& r) {
   if (model::is_adaptive(c.integ.method)) os << ", rtol = " << c.integ.rtol;
   os << '\n';
   os << "run:              " << (ok ? "completed" : "STOPPED") << " at t = " << r.t_end << " s of "
-     << c.scene.duration << " s (" << model::to_string(r.status) << ")\n";
+     << c.scene.duration << " s (" << model::to_string(r.status) << ")";
+  if (!ok) os << "; the last good step ended at t = " << r.t_end << " s";
+  os << "\n";
   if (ok)
     os << "forward speed:    " << r.avg_speed * 100.0 << " cm/s average (COM x, t = " << r.avg_from
        << " … " << r.t_end << " s)\n";
   else  // the state before a blow-up is already wrong: a speed from it would be meaningless
     os << "forward speed:    none (the run went numerically wrong)\n";
-  os << "energy [J]:       initial " << r.e_initial << (ok ? ", final " : ", last good ") << r.e_final << ", min "
-     << r.e_min << ", max " << r.e_max << " (kinetic + gravity + spring)";
+  // After a numerical failure only what the start decided is shown: the states before the
+  // failure already diverge, so their energy, work and penetration (nan, inf, 1e143 mm) mean
+  // nothing.
+  os << "energy [J]:       initial " << r.e_initial;
+  if (ok) os << ", final " << r.e_final << ", min " << r.e_min << ", max " << r.e_max;
+  os << " (kinetic + gravity + spring)";
   if (r.e_ground_initial > 0)
     os << "; " << r.e_ground_initial << " J more stored in the ground at t = 0 (the start is "
        << r.max_penetration_initial * 1000.0 << " mm inside it)";
+  if (!ok) os << "; later values not shown (the run went numerically wrong)";
   os << "\n";
-  os << "work [J]:         motors " << r.w_motor << ", dissipated " << r.w_motor - (r.e_final - r.e_initial)
-     << " (= motor work − ΔE: contact damping, friction";
-  if (c.scene.joint_friction_on) os << ", joint friction " << r.w_joint_friction;
-  os << "; trapezoid per control period)\n";
-  os << "max penetration:  " << r.max_penetration * 1000.0 << " mm\n";
+  if (ok) {
+    os << "work [J]:         motors " << r.w_motor << ", dissipated " << r.w_motor - (r.e_final - r.e_initial)
+       << " (= motor work − ΔE: contact damping, friction";
+    if (c.scene.joint_friction_on) os << ", joint friction " << r.w_joint_friction;
+    os << "; trapezoid per control period)\n";
+    os << "max penetration:  " << r.max_penetration * 1000.0 << " mm\n";
+  } else {
+    os << "work, penetration: not shown (the run went numerically wrong)\n";
+  }
   os << "integrator cost:  " << r.stats.steps << " steps, " << r.stats.rejected << " rejected, "
      << r.stats.evaluations << " evaluations, wall " << r.wall_s << " s, real-time factor "
      << (r.wall_s > 0 ? r.t_end / r.wall_s : 0.0) << " (simulated s per wall s)\n";

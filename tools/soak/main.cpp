@@ -6,8 +6,10 @@
 //
 //   pedalwave_soak --duration 3600 --load 2 --out out/soak
 //
-// Exit codes: 0 the run reached its duration with no fault event; 1 otherwise (fault, early exit,
-// no report, interrupted); 2 bad option, file or configuration (the message names it).
+// Exit codes (soak.hpp, toolkit/cli.hpp): 0 the run reached its duration with no fault event; 4 a
+// fault ended the run or fault events in it; 5 an operator emergency stop ended it (the runtime's
+// own mapping of how its run ended); 2 bad option, file or configuration (the message names it);
+// 1 no verdict on a whole run (interrupted, no report, the runtime crashed or stopped early).
 #include <CLI/CLI.hpp>
 
 #include "pedalwave/toolkit/cli.hpp"
@@ -508,8 +510,7 @@ int main(int argc, char** argv) {
   } catch (const sk::UsageError& e) {
     std::cerr << "pedalwave_soak: error: " << e.what() << '\n';
     return sk::kExitUsage;
-  } catch (const std::exception& e) {
-    std::cerr << "pedalwave_soak: error: " << e.what() << '\n';
-    return sk::kExitFail;
+  } catch (...) {
+    return pedalwave::toolkit::cli::exit_for_current_exception("pedalwave_soak");
   }
 }

@@ -7,9 +7,14 @@
 #include <fstream>
 #include <sstream>
 
+#include "pedalwave/toolkit/cli.hpp"
 #include "pedalwave/toolkit/table.hpp"
 
 namespace pedalwave::soak {
+
+static_assert(kExitPass == toolkit::cli::kExitOk && kExitFail == toolkit::cli::kExitInternal &&
+              kExitUsage == toolkit::cli::kExitBadInput && kExitFault == toolkit::cli::kExitFault &&
+              kExitEmergencyStop == toolkit::cli::kExitEmergencyStop);
 
 namespace {
 
@@ -158,12 +163,24 @@ Verdict judge(const Json& report, int runtime_exit, bool interrupted) {
     v.code = kExitFail;
     v.reasons.push_back(std::move(why));
   };
+  // The most specific code (see soak.hpp) once the reasons are known.
+  auto settle = [&](int faults) {
+    if (v.reasons.empty()) return;
+    const int ended = report.is_object()
+                          ? toolkit::cli::exit_for_run_end(report["exit"]["reason"].string_or("none"))
+                          : toolkit::cli::kExitInternal;
+    if (ended == kExitFault || ended == kExitEmergencyStop) v.code = ended;
+    else if (faults > 0) v.code = kExitFault;
+    else if (runtime_exit == kExitUsage) v.code = kExitUsage;
+    else v.code = kExitFail;
+  };
   if (interrupted) fail("the soak was interrupted (SIGINT/SIGTERM) before the end");
   if (runtime_exit != 0)
     fail(runtime_exit < 0 ? "the runtime was killed by a signal"
                           : "the runtime exited with code " + std::to_string(runtime_exit));
   if (!report.is_object()) {
     fail("no report from the runtime (report.json missing or unreadable)");
+    settle(0);
     return v;
   }
   const Json& exit = report["exit"];
@@ -175,6 +192,7 @@ Verdict judge(const Json& report, int runtime_exit, bool interrupted) {
   for (const Json& e : report["events"].is_array() ? report["events"].items() : Json::Array{})
     faults += is_fault_event(e) ? 1 : 0;
   if (faults > 0) fail(std::to_string(faults) + " fault event(s) in the report");
+  settle(static_cast<int>(faults));
   return v;
 }
 

@@ -17,10 +17,14 @@ namespace pedalwave::soak {
 
 using toolkit::Json;
 
-// Exit codes of pedalwave_soak.
-inline constexpr int kExitPass = 0;    // the run reached its duration with no fault event
-inline constexpr int kExitFail = 1;    // a fault, an early exit, no report, interrupted
-inline constexpr int kExitUsage = 2;   // bad option, file or configuration
+// Exit codes of pedalwave_soak: those of every tool (toolkit/cli.hpp), the run's end mapped as
+// pedalwave_runtime maps it (cli::exit_for_run_end).
+inline constexpr int kExitPass = 0;           // the run reached its duration with no fault event
+inline constexpr int kExitFail = 1;           // no verdict on a whole run: interrupted, no report,
+                                              // the runtime crashed or stopped early by a signal
+inline constexpr int kExitUsage = 2;          // bad option, file or configuration
+inline constexpr int kExitFault = 4;          // a fault ended the run, or fault events in it
+inline constexpr int kExitEmergencyStop = 5;  // an operator emergency stop ended the run
 
 // Thrown for usage/configuration problems (exit 2); what() names the option or file, the value
 // and what was expected.
@@ -64,7 +68,10 @@ struct Verdict {
 // `report` is the parsed report.json (null when none), `runtime_exit` the runtime's exit status
 // (−1 = killed by a signal), `interrupted` whether the soak was stopped by SIGINT/SIGTERM.
 // Passes when the runtime exited 0 with exit.reason "cycle_limit" (its duration), exit.fault
-// none/null, and no event of kind "fault".
+// none/null, and no event of kind "fault". Otherwise the code says why: the run's end as the
+// runtime maps it (exit.reason "fault" → kExitFault, "emergency_stop" → kExitEmergencyStop);
+// fault events in a run that went on → kExitFault; the runtime refused its configuration (exit 2)
+// → kExitUsage; anything else → kExitFail.
 [[nodiscard]] Verdict judge(const Json& report, int runtime_exit, bool interrupted);
 
 // A text table of one stage's histogram (report "timing_us".<stage>): rows from the first to the

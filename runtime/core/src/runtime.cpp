@@ -43,6 +43,17 @@ int first_non_finite(const std::array<double, drivers::kMaxJoints>& a, int n) no
 
 int rank(Severity s) noexcept { return static_cast<int>(s); }
 
+// The event text of a stop by signal, naming the signal (a static string: the loop allocates nothing).
+const char* stop_signal_text(int sig) noexcept {
+  switch (sig) {
+    case SIGINT: return "stop signal SIGINT";
+    case SIGTERM: return "stop signal SIGTERM";
+    case SIGHUP: return "stop signal SIGHUP";
+    case SIGQUIT: return "stop signal SIGQUIT";
+    default: return "stop signal";
+  }
+}
+
 }  // namespace
 
 // ---- Free functions ------------------------------------------------------------------------------
@@ -246,7 +257,7 @@ bool Runtime::cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std:
     result_.signal = sig;
     stop.stop = true;
     stop.reason = ExitReason::kSignal;
-    stop.text = "stop signal (SIGINT/SIGTERM)";
+    stop.text = stop_signal_text(sig);
     return false;
   }
   if (stop_requested_.load(std::memory_order_relaxed)) {

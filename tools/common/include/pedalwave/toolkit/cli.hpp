@@ -9,11 +9,15 @@
 #include <CLI/CLI.hpp>
 
 #include <cmath>
+#include <exception>
 #include <iostream>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <string_view>
+
+#include "pedalwave/config/yaml_reader.hpp"  // config::ConfigError: a refused file is bad input
 
 namespace pedalwave::toolkit::cli {
 
@@ -28,6 +32,47 @@ inline constexpr int kExitEmergencyStop = 5;  // an operator emergency stop ende
 inline int bad_input(std::string_view tool, const std::string& what) {
   std::cerr << tool << ": error: " << what << '\n';
   return kExitBadInput;
+}
+
+// The exit status of the exception being handled (call it inside a catch block), with its one
+// line "<tool>: error: <what>" on stderr: a file the configuration reader refused
+// (config::ConfigError: file:line, key, value, what was expected) and a value refused by a check
+// (std::invalid_argument) are bad input, kExitBadInput; anything else is kExitInternal.
+inline int exit_for_current_exception(std::string_view tool) {
+  try {
+    throw;
+  } catch (const config::ConfigError& e) {
+    return bad_input(tool, e.what());
+  } catch (const std::invalid_argument& e) {
+    return bad_input(tool, e.what());
+  } catch (const std::exception& e) {
+    std::cerr << tool << ": error: " << e.what() << '\n';
+  } catch (...) {
+    std::cerr << tool << ": error: unknown exception\n";
+  }
+  return kExitInternal;
+}
+
+// Runs a tool's work, body() → its exit status, mapping what escapes it as above: no bad input
+// leaves a tool as exit 1.
+template <class Body>
+int run(std::string_view tool, Body&& body) {
+  try {
+    return body();
+  } catch (...) {
+    return exit_for_current_exception(tool);
+  }
+}
+
+// How a run of the runtime ended (runtime::ExitReason, by the name the exit line and the JSON
+// report use: "cycle_limit", "stop_requested", "signal", "fault", "emergency_stop") → the exit
+// status: the daemon's (app::exit_code) and every tool that drives it (pedalwave_soak).
+// kExitInternal for "none" or an unknown name (the run did not end in order).
+inline int exit_for_run_end(std::string_view reason) {
+  if (reason == "cycle_limit" || reason == "stop_requested" || reason == "signal") return kExitOk;
+  if (reason == "fault") return kExitFault;
+  if (reason == "emergency_stop") return kExitEmergencyStop;
+  return kExitInternal;
 }
 
 // Parses the command line. nullopt: go on. Otherwise the exit status to return: 0 after --help

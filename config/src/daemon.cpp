@@ -77,8 +77,8 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
   const double period = 1.0 / c.runtime.rt.rate_hz;
   const int joints = c.robot.N - 1;
   if (d.kind == DriverKind::kSim) {
-    if (!r.has("scene")) r.fail_key("scene", "the scene file the simulated plant runs (driver.type: sim)");
-    std::filesystem::path p = r.string("scene", "");
+    const Reader scene = r.required("scene", "the scene file the simulated plant runs (driver.type: sim)");
+    std::filesystem::path p = scene.as_string();
     if (p.is_relative()) p = std::filesystem::path(base_dir) / p;
     d.scene_path = p.lexically_normal().string();
     try {
@@ -291,8 +291,7 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
   if (r.has("robot")) c.robot = read_robot(r["robot"]);
   if (r.has("realtime")) read_realtime(r["realtime"], c);
   else c.runtime.auto_start = true;
-  if (!r.has("driver")) r.fail_key("driver", "a driver section (type: sim | socketcan | serial)");
-  read_driver(r["driver"], base_dir, c);
+  read_driver(r.required("driver", "a driver section (type: sim | socketcan | serial)"), base_dir, c);
   if (c.driver.kind == DriverKind::kSim && r.has("robot"))
     check_robot_matches_scene(r["robot"], c.driver.scene.robot, c.driver.scene_path);
   // Controller: matched to the robot (K, n² I_r), at the loop rate.

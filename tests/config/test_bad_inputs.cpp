@@ -305,3 +305,56 @@ TEST(BadInputs, DurationProblem) {
   EXPECT_NE(config::duration_problem(HUGE_VAL, 1000), "");
   EXPECT_NE(config::duration_problem(1e308, 1000), "");
 }
+
+// A key written with no value (`ground:` alone, `duration:`, `K: ~`) is an error at the key's line,
+// not the default: an empty `ground:` would otherwise run the robot in vacuum. An empty flow list
+// or map is a value.
+TEST(BadInputs, AKeyWithNoValueIsAnErrorNotTheDefault) {
+  const std::string none = " (the key has no value; remove it for the default)";
+  const std::string required = " (the key has no value; it is required)";
+  const std::vector<std::pair<std::string, std::string>> scene = {
+      {"ground:\nduration: 5\n", "bad.yaml:1:1: ground = \"\": expected a map of ground keys" + none},
+      {"duration: 5\ngait: ~\n", "bad.yaml:2:1: gait = \"\": expected a map of gait keys" + none},
+      {"name: x\nduration:\n", "bad.yaml:2:1: duration = \"\": expected a number in (0, 1e+06] [s]" + none},
+      {"ground:\n  k:\n  mu: 0.5\n", "bad.yaml:2:3: ground.k = \"\": expected a number in (0, 1e+07] [N/m]" + none},
+      {"robot:\n  K: null\n", "bad.yaml:2:3: robot.K = \"\": expected a number or a list of numbers" + none},
+      {"robot: {N: 6, joints: }\n", "bad.yaml:1:15: robot.joints = \"\": expected one of flexible, rigid" + none},
+      {"integrator:\n  method: rk4\n  rtol:\n", "bad.yaml:3:3: integrator.rtol = \"\": expected a number in (0, 1] [-]" + none},
+      {"ground: {}\nobstacles:\n  - x_near:\n    width: 0.1\n",
+       "bad.yaml:3:5: obstacles[0].x_near = \"\": expected a number in [-10000, 10000] [m]" + none},
+      {"faults:\n  - type: nan\n    joint:\n", "bad.yaml:3:5: faults[0].joint = \"\": expected an integer in [0, 4]" + none},
+      {"faults:\n  - type:\n    joint: 1\n", "bad.yaml:2:5: faults[0].type = \"\": expected a fault type" + required},
+      {"ground:\n  patches:\n    - x_begin:\n", "bad.yaml:3:7: ground.patches[0].x_begin = \"\": expected a number" + required},
+      {"ground: {}\nobstacles:\n  - {x_near: 0.2}\n  -   # nothing\n\nduration: 1\n",
+       "bad.yaml:4:3: obstacles[1] = \"\": expected a value (the list element is empty: give it one or remove the '-')"},
+      {"robot:\n  K: [1, ~, 1, 1, 1]\n", "bad.yaml:2:10: robot.K[1] = \"\": expected a value (the list element is empty"},
+  };
+  for (const auto& [yaml, expected] : scene) {
+    SCOPED_TRACE(yaml);
+    const std::string e = scene_error(yaml);
+    EXPECT_EQ(e.rfind(expected, 0), 0u) << e;
+    EXPECT_TRUE(one_line(e)) << e;
+  }
+  const std::vector<std::pair<std::string, std::string>> daemon = {
+      {"rate_hz: 500\ndriver:\n", "bad.yaml:2:1: driver = \"\": expected a driver section (type: sim | socketcan | serial)" + required},
+      {"driver:\n  type: sim\n  scene:\n", "bad.yaml:3:3: driver.scene = \"\": expected the scene file the simulated plant runs" },
+      {kSimDriver + "telemetry:\n", "bad.yaml:4:1: telemetry = \"\": expected a map of telemetry keys" + none},
+      {"rate_hz:\n" + kSimDriver, "bad.yaml:1:1: rate_hz = \"\": expected a number" },
+      {kSimDriver + "controller:\n  K_p:\n", "bad.yaml:5:3: controller.K_p = \"\": expected a number or a list of numbers" + none},
+      {kSimDriver + "realtime: {priority: 10, clock: }\n",
+       "bad.yaml:4:26: realtime.clock = \"\": expected one of realtime, lockstep" + none},
+      {kSimDriver + "controller:\n  gait:\n    omega:\n", "bad.yaml:6:5: controller.gait.omega = \"\": expected a number in [-100, 100] [rad/s]" + none},
+      {kSimDriver + "telemetry:\n  peers:\n    - 127.0.0.1\n    -\n",
+       "bad.yaml:7:5: telemetry.peers[1] = \"\": expected a value (the list element is empty"},
+  };
+  for (const auto& [yaml, expected] : daemon) {
+    SCOPED_TRACE(yaml);
+    const std::string e = daemon_error(yaml);
+    EXPECT_EQ(e.rfind(expected, 0), 0u) << e;
+    EXPECT_TRUE(one_line(e)) << e;
+  }
+  // Empty flow lists and maps are values: no faults, no obstacles, the defaults of a section.
+  EXPECT_EQ(scene_error("ground: {}\nobstacles: []\nfaults: []\nrobot: {}\n"), "(no error)");
+  EXPECT_EQ(daemon_error(kSimDriver + "telemetry: {peers: []}\nobserver: {}\n"), "(no error)");
+  EXPECT_EQ(config::parse_scene("ground: {}\n", "ok.yaml").ground_on, true);
+}

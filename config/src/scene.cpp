@@ -1,5 +1,6 @@
 #include "pedalwave/config/scene.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -95,6 +96,13 @@ Scene read_scene(const Reader& r) {
   Scene s;
   s.source = r.file();
   s.name = r.string("name", r.file());
+  // A given name names pedalwave_sim's output folder (sim_out/<name>) and workprec's report file.
+  if (r.has("name") && (s.name.empty() || s.name.size() > 63 ||
+                        std::any_of(s.name.begin(), s.name.end(), [](char c) {
+                          return c == '/' || static_cast<unsigned char>(c) < 0x20 || c == 0x7f;
+                        })))
+    r["name"].fail("a name of 1 … 63 characters, no '/' or control characters");
+  (void)r.string("description", "");  // a label: any text, but text
   if (r.has("robot")) s.robot = read_robot(r["robot"]);
   s.ground_on = r.has("ground");
   if (s.ground_on) {

@@ -2,7 +2,9 @@
 // configuration refuses a wrong type, a value out of its range and a repeated key, each with one
 // line naming the file, line, key, value and what was expected
 // (`bad.yaml:3:6: ground.k = "1e308": expected a number in (0, 1e+07] [N/m]`). A table drives it:
-// one row per key, its YAML with `@` where the value goes.
+// one row per key, its YAML with `@` where the value goes. It stays whole: a key the readers accept
+// without a row fails EveryKeyTheReadersAcceptHasARow, a scene key missing from
+// config/scenes/README.md's table fails EverySceneKeyWithARowIsInTheReadmeTable.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -10,6 +12,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <regex>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -428,4 +433,98 @@ TEST(BadInputs, AKeyWithNoValueIsAnErrorNotTheDefault) {
   EXPECT_EQ(scene_error("ground: {}\nobstacles: []\nfaults: []\nrobot: {}\n"), "(no error)");
   EXPECT_EQ(daemon_error(kSimDriver + "telemetry: {peers: []}\nobserver: {}\n"), "(no error)");
   EXPECT_EQ(config::parse_scene("ground: {}\n", "ok.yaml").ground_on, true);
+}
+
+// ---- every key has a row ----
+
+namespace {
+
+// The leaf keys a reader accepts, read off its unknown-key messages ("unknown key 'robot.zz_unknown':
+// expected one of N, m_l, …") in every map of the file; `maps` gives each map's path and a file with
+// `@` where a key goes. A key that is itself one of the maps, or a list of them (`obstacles` for
+// `obstacles[0]`), is no leaf: a new section shows up as a leaf without a row until it is probed.
+template <class E>
+std::set<std::string> accepted_leaf_keys(const std::vector<std::pair<std::string, std::string>>& maps, E&& error) {
+  std::set<std::string> keys;
+  for (const auto& [path, yaml] : maps) {
+    const std::string prefix = path.empty() ? "" : path + ".";
+    const std::string e = error(with(yaml, "zz_unknown"));
+    const std::string marker = "unknown key '" + prefix + "zz_unknown': expected one of ";
+    const std::size_t at = e.find(marker);
+    EXPECT_NE(at, std::string::npos) << path << ": " << e;
+    if (at == std::string::npos) continue;
+    std::stringstream list(e.substr(at + marker.size()));
+    for (std::string k; std::getline(list, k, ',');) keys.insert(prefix + k.substr(k.find_first_not_of(' ')));
+  }
+  std::erase_if(keys, [&](const std::string& k) {
+    return std::any_of(maps.begin(), maps.end(),
+                       [&](const auto& m) { return m.first == k || m.first.rfind(k + "[", 0) == 0; });
+  });
+  return keys;
+}
+
+// The keys of `a` that `b` lacks, for a message.
+std::string missing(const std::set<std::string>& a, const std::set<std::string>& b) {
+  std::string out;
+  for (const std::string& k : a)
+    if (!b.count(k)) out += (out.empty() ? "" : ", ") + k;
+  return out;
+}
+
+void expect_a_row_per_key(const std::set<std::string>& accepted, const std::vector<KeyRow>& rows) {
+  std::set<std::string> paths;
+  for (const KeyRow& k : rows) paths.insert(k.path);
+  EXPECT_EQ(missing(accepted, paths), "") << "keys the reader accepts without a row";
+  EXPECT_EQ(missing(paths, accepted), "") << "rows for keys the reader does not accept";
+}
+
+}  // namespace
+
+TEST(BadInputs, EveryKeyTheReadersAcceptHasARow) {
+  std::vector<std::pair<std::string, std::string>> scene = {
+      {"", "@: 1\n"},
+      {"ground.patches[0]", "ground:\n  patches:\n    - {x_begin: 0, @: 1}\n"},
+      {"obstacles[0]", "ground: {}\nobstacles:\n  - {x_near: 0.2, @: 1}\n"},
+      {"faults[0]", "faults:\n  - {type: nan, @: 1}\n"},
+  };
+  for (const char* m : {"robot", "ground", "joint_friction", "torque_limit", "sensor_noise", "initial", "gait",
+                        "integrator"})
+    scene.push_back({m, std::string(m) + ":\n  @: 1\n"});
+  expect_a_row_per_key(accepted_leaf_keys(scene, scene_error), kSceneKeys);
+
+  std::vector<std::pair<std::string, std::string>> daemon = {
+      {"", "@: 1\n" + kSimDriver},
+      {"driver", "driver:\n  type: sim\n  @: 1\n"},
+      {"controller.gait", kSimDriver + "controller:\n  gait:\n    @: 1\n"},
+  };
+  for (const char* m : {"robot", "controller", "realtime", "observer", "telemetry"})
+    daemon.push_back({m, kSimDriver + m + ":\n  @: 1\n"});
+  expect_a_row_per_key(accepted_leaf_keys(daemon, daemon_error), kDaemonKeys);
+}
+
+// The scene's keys are documented (config/scenes/README.md's table): every row's key is named in
+// the table row of its section, and the table lists exactly the sections that have rows.
+TEST(BadInputs, EverySceneKeyWithARowIsInTheReadmeTable) {
+  std::ifstream in(PEDALWAVE_CONFIG_DIR "/scenes/README.md");
+  ASSERT_TRUE(in) << "config/scenes/README.md";
+  std::map<std::string, std::string> table;  // section → its table row
+  const std::regex name("`([a-z_]+)`");
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("| `", 0) != 0) continue;
+    const std::string first = line.substr(0, line.find('|', 1));
+    for (std::sregex_iterator i(first.begin(), first.end(), name), end; i != end; ++i) table[(*i)[1]] = line;
+  }
+  std::set<std::string> sections;
+  for (const KeyRow& k : kSceneKeys) {
+    SCOPED_TRACE(k.path);
+    const std::string section = k.path.substr(0, k.path.find_first_of(".["));
+    const std::string key = k.path.substr(k.path.find_last_of('.') == std::string::npos ? 0 : k.path.find_last_of('.') + 1);
+    sections.insert(section);
+    ASSERT_TRUE(table.count(section)) << "no table row for " << section;
+    EXPECT_TRUE(std::regex_search(table[section], std::regex("(^|[^A-Za-z0-9_])" + key + "([^A-Za-z0-9_]|$)")))
+        << key << " is not named in the row of " << section;
+  }
+  std::set<std::string> documented;
+  for (const auto& [s, row] : table) documented.insert(s);
+  EXPECT_EQ(missing(documented, sections), "") << "sections in the table without rows";
 }

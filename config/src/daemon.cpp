@@ -41,16 +41,30 @@ void copy_name(std::array<char, N>& dst, const std::string& s) {
   std::memcpy(dst.data(), s.data(), std::min(s.size(), N - 1));
 }
 
+// lo <= hi for a pair of keys of one section, either of them possibly its default: the one given
+// is refused (lo_key when both are), at its line; the components would refuse it later, lineless.
+void check_order(const Reader& r, const char* lo_key, double lo, const char* hi_key, double hi) {
+  if (lo <= hi) return;
+  std::ostringstream os;
+  if (r.has(lo_key)) {
+    os << "a number <= " << r.path() << "." << hi_key << " = " << hi;
+    r[lo_key].fail(os.str());
+  }
+  os << "a number >= " << r.path() << "." << lo_key << " = " << lo;
+  r[hi_key].fail(os.str());
+}
+
 void read_controller(const Reader& r, DaemonConfig& c) {
   r.allow_only({"k_c", "pd_placement", "K_p", "K_D", "tau_max", "tau_rate_max", "gait",
                 "M_d", "D_d", "K_d", "eta_min", "eta_max"});
   control::GaitControllerParams& p = c.controller;
   p.admittance.k_c = r.bounded("k_c", 0.0, -1e3, 1e3, "-");
-  p.admittance.M_d = r.bounded("M_d", p.admittance.M_d, 0, 1e6, "", true);
-  p.admittance.D_d = r.bounded("D_d", p.admittance.D_d, 0, 1e6, "", true);
-  p.admittance.K_d = r.bounded("K_d", p.admittance.K_d, 0, 1e6, "", true);
+  p.admittance.M_d = r.bounded("M_d", p.admittance.M_d, 0, 1e6, "N·m·s²/rad", true);
+  p.admittance.D_d = r.bounded("D_d", p.admittance.D_d, 0, 1e6, "N·m·s/rad", true);
+  p.admittance.K_d = r.bounded("K_d", p.admittance.K_d, 0, 1e6, "N·m/rad", true);
   p.admittance.eta_min = r.bounded("eta_min", p.admittance.eta_min, -2 * M_PI, 2 * M_PI, "rad");
   p.admittance.eta_max = r.bounded("eta_max", p.admittance.eta_max, -2 * M_PI, 2 * M_PI, "rad");
+  check_order(r, "eta_min", p.admittance.eta_min, "eta_max", p.admittance.eta_max);
   p.pd.placement = r.choice("pd_placement", "module", {"module", "host"}) == "host"
                        ? control::PdPlacement::kHost
                        : control::PdPlacement::kModule;
@@ -77,10 +91,13 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
   const double period = 1.0 / c.runtime.rt.rate_hz;
   const int joints = c.robot.N - 1;
   if (d.kind == DriverKind::kSim) {
-    if (!r.has("scene")) r.fail_key("scene", "the scene file the simulated plant runs (driver.type: sim)");
-    std::filesystem::path p = r.string("scene", "");
+    const Reader scene = r.required("scene", "the scene file the simulated plant runs (driver.type: sim)");
+    std::filesystem::path p = scene.as_string();
     if (p.is_relative()) p = std::filesystem::path(base_dir) / p;
     d.scene_path = p.lexically_normal().string();
+    // A scene that is not there is this key's error (what is wrong inside one is the scene's).
+    if (std::error_code ec; !std::filesystem::exists(d.scene_path, ec))
+      scene.fail("an existing scene file (there is no " + d.scene_path + "; a relative path starts at this file's folder)");
     try {
       d.scene = load_scene(d.scene_path);
     } catch (const ConfigError& e) {
@@ -109,7 +126,9 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
     });
   } else {
     d.serial.device = r.string("device", "/dev/ttyUSB0");
-    if (d.serial.device.empty()) r["device"].fail("a device path (e.g. /dev/ttyUSB0)");
+    // Absolute: a relative one would be opened from wherever the daemon was started.
+    if (d.serial.device.empty() || d.serial.device[0] != '/')
+      r["device"].fail("an absolute device path (e.g. /dev/ttyUSB0)");
     d.serial.baud = static_cast<int>(r.integer("baud", 4'000'000, 9600, 4'000'000));
     d.serial.joints = joints;
     d.serial.return_delay_s = r.bounded("return_delay", 20e-6, 0, 0.1, "s");
@@ -154,7 +173,13 @@ void read_telemetry(const Reader& r, DaemonConfig& c) {
   if (r.has("peers")) {
     const Reader p = r["peers"];
     if (!p.is_sequence()) p.fail("a list of addresses");
-    for (std::size_t i = 0; i < p.size(); ++i) t.peers.push_back(p.at(i).as_string());
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      const Reader a = p.at(i);
+      t.peers.push_back(a.as_string());
+      // What the telemetry would refuse only when it starts (it writes them into an XML file).
+      if (t.peers.back().empty() || t.peers.back().find_first_of(" \t<>&\"'") != std::string::npos)
+        a.fail("an IPv4 address or host name (no blanks or <>&\"')");
+    }
   }
   t.decimation_state = static_cast<int>(r.integer("decimation_state", 10, 1, 100000));
   t.decimation_timing = static_cast<int>(r.integer("decimation_timing", 10, 1, 100000));
@@ -163,6 +188,7 @@ void read_telemetry(const Reader& r, DaemonConfig& c) {
   t.omega_max = r.bounded("omega_max", t.omega_max, 0, 100, "rad/s", true);
   t.eta_min = r.bounded("eta_min", t.eta_min, -2 * M_PI, 2 * M_PI, "rad");
   t.eta_max = r.bounded("eta_max", t.eta_max, -2 * M_PI, 2 * M_PI, "rad");
+  check_order(r, "eta_min", t.eta_min, "eta_max", t.eta_max);
 }
 
 // Timeouts from the rate and the bus unless the file gives them (README "Timeouts"):
@@ -283,6 +309,13 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
   DaemonConfig c;
   c.source = name;
   c.name = r.string("name", "pedalwave");
+  // The name fills the 64-byte robot name the telemetry publishes: longer would be cut.
+  if (c.name.empty() || c.name.size() > 63 ||
+      std::any_of(c.name.begin(), c.name.end(), [](char ch) {
+        return static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f;
+      }))
+    r["name"].fail("a name of 1 … 63 characters, no control characters");
+  (void)r.string("description", "");  // a label: any text, but text
   c.runtime.rt.rate_hz = r.positive("rate_hz", 1000.0);
   if (c.runtime.rt.rate_hz > runtime::kMaxRateHz) r["rate_hz"].fail("a rate in (0, 20000] Hz");
   c.duration = r.bounded("duration", 0.0, 0, kMaxDuration, "s");
@@ -291,8 +324,7 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
   if (r.has("robot")) c.robot = read_robot(r["robot"]);
   if (r.has("realtime")) read_realtime(r["realtime"], c);
   else c.runtime.auto_start = true;
-  if (!r.has("driver")) r.fail_key("driver", "a driver section (type: sim | socketcan | serial)");
-  read_driver(r["driver"], base_dir, c);
+  read_driver(r.required("driver", "a driver section (type: sim | socketcan | serial)"), base_dir, c);
   if (c.driver.kind == DriverKind::kSim && r.has("robot"))
     check_robot_matches_scene(r["robot"], c.driver.scene.robot, c.driver.scene_path);
   // Controller: matched to the robot (K, n² I_r), at the loop rate.
@@ -317,6 +349,10 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
   }
   if (r.has("telemetry")) read_telemetry(r["telemetry"], c);
   c.log_file = r.string("log_file", "");
+  // Empty: stderr. A folder cannot be the log (it would be found only when the loop starts).
+  if (std::error_code ec; !c.log_file.empty() &&
+                          (c.log_file.back() == '/' || std::filesystem::is_directory(c.log_file, ec)))
+    r["log_file"].fail("a file path (not a folder; \"\" or no key: stderr)");
   derive_timeouts(r, c);
   // The loop.
   runtime::RuntimeConfig& rc = c.runtime;

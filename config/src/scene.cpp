@@ -1,5 +1,6 @@
 #include "pedalwave/config/scene.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -56,15 +57,15 @@ IntegratorOptions read_integrator(const Reader& r) {
   // h below 1e-7 s never ends a run (1e-15: 1e16 steps for 10 s); above 0.1 s it is no step.
   o.h = r.bounded("h", o.h, 1e-7, 0.1, "s");
   // The tolerances and step bounds belong to the adaptive method: with a fixed step they would
-  // be ignored.
-  for (const char* k : {"rtol", "atol", "h_min", "h_max"})
-    if (r.has(k) && !is_adaptive(o.method))
-      r[k].fail(std::string("integrator.method: dopri45 beside it (") + k +
-                " is the adaptive method's; method is " + std::string(to_string(o.method)) + ")");
+  // be ignored. Read first: a key with no value is that error, not this one.
   o.rtol = r.bounded("rtol", o.rtol, 0, 1, "-", true);
   o.atol = r.bounded("atol", o.atol, 0, 1, "-", true);
   o.h_min = r.bounded("h_min", o.h_min, 1e-12, 0.1, "s");
   o.h_max = r.bounded("h_max", o.h_max, 1e-7, 1, "s");
+  for (const char* k : {"rtol", "atol", "h_min", "h_max"})
+    if (r.has(k) && !is_adaptive(o.method))
+      r[k].fail(std::string("integrator.method: dopri45 beside it (") + k +
+                " is the adaptive method's; method is " + std::string(to_string(o.method)) + ")");
   if (r.has("h_min") && o.h_min > o.h_max) r["h_min"].fail("h_min <= h_max = " + std::to_string(o.h_max) + " s");
   return o;
 }
@@ -127,6 +128,13 @@ Scene read_scene(const Reader& r) {
   Scene s;
   s.source = r.file();
   s.name = r.string("name", r.file());
+  // A given name names pedalwave_sim's output folder (sim_out/<name>) and workprec's report file.
+  if (r.has("name") && (s.name.empty() || s.name.size() > 63 ||
+                        std::any_of(s.name.begin(), s.name.end(), [](char c) {
+                          return c == '/' || static_cast<unsigned char>(c) < 0x20 || c == 0x7f;
+                        })))
+    r["name"].fail("a name of 1 … 63 characters, no '/' or control characters");
+  (void)r.string("description", "");  // a label: any text, but text
   if (r.has("robot")) s.robot = read_robot(r["robot"]);
   s.ground_on = r.has("ground");
   if (s.ground_on) {
@@ -146,7 +154,7 @@ Scene read_scene(const Reader& r) {
       for (std::size_t i = 0; i < ps.size(); ++i) {
         const Reader p = ps.at(i);
         p.allow_only({"x_begin", "mu"});
-        if (!p.has("x_begin")) p.fail_key("x_begin", "a number (the key is required)");
+        p.required("x_begin", "a number");
         s.ground.patches.push_back({p.bounded("x_begin", 0.0, -1e4, 1e4, "m"), p.bounded("mu", 0.4, 0, 10, "-")});
         if (i > 0 && s.ground.patches[i].x_begin < s.ground.patches[i - 1].x_begin)
           p["x_begin"].fail("patches sorted by x_begin (this one starts before the previous)");
@@ -229,8 +237,9 @@ Scene read_scene(const Reader& r) {
       const Reader f = fs.at(i);
       f.allow_only({"type", "joint", "t_start", "value", "duration"});
       FaultSpec spec;
-      if (!f.has("type")) f.fail_key("type", "a fault type");
-      if (!parse_fault_type(f.string("type", ""), spec.type)) f["type"].fail("one of " + names);
+      const Reader type = f.required("type", "a fault type");
+      if (!type.is_scalar() || !parse_fault_type(type.as_string(), spec.type)) type.fail("one of " + names);
+      if (spec.type == FaultType::kSpringScale) f.required("value", "a stiffness factor > 0 (spring_scale)");
       const int joints = s.robot.N - 1;
       spec.joint = static_cast<int>(f.integer("joint", 0, 0, joints - 1));
       spec.t_start = f.bounded("t_start", 0.0, 0, 1e6, "s");
@@ -248,7 +257,6 @@ Scene read_scene(const Reader& r) {
           break;
         case FaultType::kSpringScale:
           spec.value = f.bounded("value", 0.0, 0, 1e6, "-", true);
-          if (!f.has("value")) f.fail_key("value", "a stiffness factor > 0 (spring_scale)");
           break;
         default:
           break;

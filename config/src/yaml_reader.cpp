@@ -1,5 +1,6 @@
 #include "pedalwave/config/yaml_reader.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -44,10 +45,37 @@ std::string value_text(const YAML::Node& n) {
   return "";
 }
 
+// Where an empty element of a block list (`-` alone on its line) stands: yaml-cpp marks it at
+// the next token, often lines below; this is the `-` before that mark (else the mark itself).
+YAML::Mark dash_before(const std::string& text, const YAML::Mark& m) {
+  std::size_t end = std::min(static_cast<std::size_t>(std::max(m.pos, 0)), text.size());
+  for (int line = m.line;; --line) {
+    const std::size_t nl = end == 0 ? std::string::npos : text.rfind('\n', end - 1);
+    const std::size_t begin = nl == std::string::npos ? 0 : nl + 1;
+    std::string part = text.substr(begin, end - begin);
+    for (std::size_t i = 0; i < part.size(); ++i)  // a comment: `#` first or after a blank
+      if (part[i] == '#' && (i == 0 || part[i - 1] == ' ' || part[i - 1] == '\t')) {
+        part.resize(i);
+        break;
+      }
+    if (const std::size_t last = part.find_last_not_of(" \t\r"); last != std::string::npos) {
+      if (part[last] != '-') return m;
+      YAML::Mark dash;
+      dash.pos = static_cast<int>(begin + last);
+      dash.line = line;
+      dash.column = static_cast<int>(last);
+      return dash;
+    }
+    if (nl == std::string::npos) return m;
+    end = nl;
+  }
+}
+
 // Every map of the document, at any depth, has each key once (yaml-cpp keeps both entries and
-// node[key] returns the first: a repeated key would silently lose its second value).
-void check_unique_keys(const YAML::Node& n, const std::string& file, const std::string& path,
-                       int depth) {
+// node[key] returns the first: a repeated key would silently lose its second value), and every
+// list element has a value (`-` alone is no obstacle, no fault, no stiffness).
+void check_unique_keys(const YAML::Node& n, const std::string& text, const std::string& file,
+                       const std::string& path, int depth) {
   if (depth > 64) {
     throw ConfigError(mark_text(file, n.Mark()) + ": " + (path.empty() ? "(top level)" : path) +
                       ": expected at most 64 levels of nesting");
@@ -65,11 +93,17 @@ void check_unique_keys(const YAML::Node& n, const std::string& file, const std::
            << first->second.line + 1 << ")";
         throw ConfigError(os.str());
       }
-      check_unique_keys(kv.second, file, child, depth + 1);
+      check_unique_keys(kv.second, text, file, child, depth + 1);
     }
   } else if (n.IsSequence()) {
-    for (std::size_t i = 0; i < n.size(); ++i)
-      check_unique_keys(n[i], file, path + "[" + std::to_string(i) + "]", depth + 1);
+    for (std::size_t i = 0; i < n.size(); ++i) {
+      const std::string child = path + "[" + std::to_string(i) + "]";
+      if (n[i].IsNull())
+        throw ConfigError(mark_text(file, dash_before(text, n[i].Mark())) + ": " + child +
+                          " = \"\": expected a value (the list element is empty: give it one or "
+                          "remove the '-')");
+      check_unique_keys(n[i], text, file, child, depth + 1);
+    }
   }
 }
 
@@ -106,7 +140,7 @@ Reader Reader::parse(const std::string& text, const std::string& name) {
   try {
     YAML::Node n = YAML::Load(text);
     if (!n.IsDefined() || n.IsNull()) n = YAML::Node(YAML::NodeType::Map);
-    check_unique_keys(n, name, "", 0);
+    check_unique_keys(n, text, name, "", 0);
     return Reader(n, name, "");
   } catch (const YAML::Exception& e) {
     std::ostringstream os;
@@ -116,29 +150,35 @@ Reader Reader::parse(const std::string& text, const std::string& name) {
 }
 
 Reader::Reader(YAML::Node node, std::string file, std::string path)
-    : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)) {}
+    : Reader(node, std::move(file), std::move(path), node.Mark()) {}
 
-std::string Reader::location() const {
-  std::ostringstream os;
-  os << file_;
-  const YAML::Mark m = node_.Mark();
-  if (m.line >= 0) os << ":" << m.line + 1 << ":" << m.column + 1;
-  return os.str();
-}
+Reader::Reader(YAML::Node node, std::string file, std::string path, YAML::Mark mark)
+    : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)), mark_(mark) {}
+
+std::string Reader::location() const { return mark_text(file_, mark_); }
 
 std::string Reader::child_path(const std::string& key) const {
   return path_.empty() ? key : path_ + "." + key;
 }
 
-bool Reader::has(const std::string& key) const {
-  return node_.IsMap() && node_[key].IsDefined() && !node_[key].IsNull();
-}
+bool Reader::has(const std::string& key) const { return node_.IsMap() && node_[key].IsDefined(); }
 
 Reader Reader::operator[](const std::string& key) const {
   if (!node_.IsMap()) fail("a map with key '" + key + "'");
   YAML::Node c = node_[key];
   if (!c.IsDefined()) fail_key(key, "a value (the key is required)");
-  return Reader(c, file_, child_path(key));
+  YAML::Mark m = c.Mark();
+  if (c.IsNull())
+    for (const auto& kv : node_)
+      if (kv.first.IsScalar() && kv.first.Scalar() == key) m = kv.first.Mark();
+  return Reader(c, file_, child_path(key), m);
+}
+
+Reader Reader::required(const std::string& key, const std::string& expected) const {
+  if (!has(key)) fail_key(key, expected + " (the key is required)");
+  const Reader c = (*this)[key];
+  if (c.node_.IsNull()) c.fail_with(expected, "the key has no value; it is required");
+  return c;
 }
 
 Reader Reader::at(std::size_t i) const {
@@ -147,15 +187,18 @@ Reader Reader::at(std::size_t i) const {
 }
 
 void Reader::fail(const std::string& expected) const {
+  fail_with(expected, node_.IsNull() ? "the key has no value; remove it for the default" : "");
+}
+
+void Reader::fail_with(const std::string& expected, const std::string& note) const {
   std::ostringstream os;
   os << location() << ": " << (path_.empty() ? "(top level)" : path_);
-  if (node_.IsScalar())
-    os << " = \"" << node_.Scalar() << "\"";
-  else if (node_.IsSequence())
-    os << " = [list]";
-  else if (node_.IsMap())
-    os << " = {map}";
+  if (node_.IsNull())
+    os << " = \"\"";
+  else
+    os << value_text(node_);
   os << ": expected " << expected;
+  if (!note.empty()) os << " (" << note << ")";
   throw ConfigError(os.str());
 }
 
@@ -233,7 +276,7 @@ double Reader::number(const std::string& key, double def) const {
 }
 
 double Reader::number(const std::string& key) const {
-  if (!has(key)) fail_key(key, "a number (the key is required)");
+  required(key, "a number");
   return number(key, 0.0);
 }
 
@@ -252,9 +295,10 @@ double Reader::non_negative(const std::string& key, double def) const {
 long long Reader::integer(const std::string& key, long long def, long long lo, long long hi) const {
   if (!has(key)) return def;
   const Reader r = (*this)[key];
+  const std::string range = "an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+  if (!r.is_scalar()) r.fail(range);
   const long long v = r.as_integer();
-  if (v < lo || v > hi)
-    r.fail("an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  if (v < lo || v > hi) r.fail(range);
   return v;
 }
 
@@ -262,13 +306,12 @@ double Reader::bounded(const std::string& key, double def, double lo, double hi,
                        bool lo_open) const {
   if (!has(key)) return def;
   const Reader r = (*this)[key];
+  std::ostringstream os;
+  os << "a number in " << (lo_open ? "(" : "[") << lo << ", " << hi << "]";
+  if (unit && *unit) os << " [" << unit << "]";
+  if (!r.is_scalar()) r.fail(os.str());
   const double v = r.as_number();
-  if (!std::isfinite(v) || (lo_open ? !(v > lo) : !(v >= lo)) || !(v <= hi)) {
-    std::ostringstream os;
-    os << "a number in " << (lo_open ? "(" : "[") << lo << ", " << hi << "]";
-    if (unit && *unit) os << " [" << unit << "]";
-    r.fail(os.str());
-  }
+  if (!std::isfinite(v) || (lo_open ? !(v > lo) : !(v >= lo)) || !(v <= hi)) r.fail(os.str());
   return v;
 }
 
@@ -303,13 +346,12 @@ std::string Reader::choice(const std::string& key, const std::string& def,
                            std::initializer_list<const char*> allowed) const {
   if (!has(key)) return def;
   const Reader r = (*this)[key];
-  const std::string v = r.as_string();
   std::string list;
-  for (const char* a : allowed) {
+  for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
+  if (!r.is_scalar()) r.fail("one of " + list);
+  const std::string v = r.as_string();
+  for (const char* a : allowed)
     if (v == a) return v;
-    list += list.empty() ? "" : ", ";
-    list += a;
-  }
   r.fail("one of " + list);
 }
 
@@ -324,7 +366,7 @@ std::vector<double> Reader::numbers(const std::string& key) const {
 }
 
 void Reader::allow_only(std::initializer_list<const char*> allowed) const {
-  if (!node_.IsMap()) fail("a map");
+  if (!node_.IsMap()) fail(path_.empty() ? "a map of keys" : "a map of " + path_ + " keys");
   for (const auto& kv : node_) {
     // A key that is not a word (a list or a map as a key, `[a]: 1`) is no key of ours either.
     const std::string k = kv.first.IsScalar() ? kv.first.Scalar() : "{complex key}";

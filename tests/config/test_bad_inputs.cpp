@@ -2,7 +2,9 @@
 // configuration refuses a wrong type, a value out of its range and a repeated key, each with one
 // line naming the file, line, key, value and what was expected
 // (`bad.yaml:3:6: ground.k = "1e308": expected a number in (0, 1e+07] [N/m]`). A table drives it:
-// one row per key, its YAML with `@` where the value goes.
+// one row per key, its YAML with `@` where the value goes. It stays whole: a key the readers accept
+// without a row fails EveryKeyTheReadersAcceptHasARow, a scene key missing from
+// config/scenes/README.md's table fails EverySceneKeyWithARowIsInTheReadmeTable.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -10,6 +12,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <regex>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -29,9 +34,15 @@ struct KeyRow {
   std::string yaml;       // the file, `@` where the value goes (on its own line)
   std::string good;       // a value the key accepts
   std::string bad_type;   // a value of the wrong type
-  std::string bad_range;  // a value of the right type, out of its range ("" = no range)
+  std::string bad_range;  // a value of the right type, out of its range ("" = no range); a list
+                          // `[x]` for a list key: the message names its element, path[0] = "x"
   std::string expected;   // what the range message says it expected
 };
+
+// How a message shows a value: a list as [list], a map as {map}, a scalar quoted.
+std::string shown(const std::string& v) {
+  return v[0] == '[' ? "[list]" : v[0] == '{' ? "{map}" : "\"" + v + "\"";
+}
 
 std::string with(const std::string& yaml, const std::string& v) {
   std::string s = yaml;
@@ -80,24 +91,28 @@ void check_row(const KeyRow& k, E&& error) {
   EXPECT_EQ(error(with(k.yaml, k.good)), "(no error)") << "the good value " << k.good;
   std::string e = error(with(k.yaml, k.bad_type));
   EXPECT_EQ(e.rfind(at, 0), 0u) << e;
-  const std::string shown = k.bad_type[0] == '[' ? "[list]" : k.bad_type[0] == '{' ? "{map}" : "\"" + k.bad_type + "\"";
-  EXPECT_NE(e.find(k.path + " = " + shown + ": expected "), std::string::npos) << e;
+  EXPECT_NE(e.find(k.path + " = " + shown(k.bad_type) + ": expected "), std::string::npos) << e;
   EXPECT_TRUE(one_line(e)) << e;
   if (!k.bad_range.empty()) {
     e = error(with(k.yaml, k.bad_range));
     EXPECT_EQ(e.rfind(at, 0), 0u) << e;
-    EXPECT_NE(e.find(k.path + " = \"" + k.bad_range + "\": expected " + k.expected), std::string::npos) << e;
+    const bool element = k.bad_range[0] == '[';
+    const std::string named = element ? k.path + "[0] = \"" + k.bad_range.substr(1, k.bad_range.size() - 2) + "\""
+                                      : k.path + " = \"" + k.bad_range + "\"";
+    EXPECT_NE(e.find(named + ": expected " + k.expected), std::string::npos) << e;
     EXPECT_TRUE(one_line(e)) << e;
   }
   // The duplicate is reported where it stands: the line after the first.
   e = error(duplicated(k.yaml, k.good));
   const std::string dup_at = "bad.yaml:" + std::to_string(line_of_value(k.yaml) + 1) + ":";
   EXPECT_EQ(e.rfind(dup_at, 0), 0u) << e;
-  EXPECT_NE(e.find(k.path + " = \"" + k.good + "\": expected each key once"), std::string::npos) << e;
+  EXPECT_NE(e.find(k.path + " = " + shown(k.good) + ": expected each key once"), std::string::npos) << e;
   EXPECT_TRUE(one_line(e)) << e;
 }
 
 const std::vector<KeyRow> kSceneKeys = {
+    {"name", "name: @\n", "stair", "[1]", "runs/stair", "a name of 1 … 63 characters, no '/'"},
+    {"description", "description: @\n", "a stair", "{a: 1}", "", ""},
     {"robot.N", "robot:\n  N: @\n", "8", "six", "1", "an integer in [2, 64]"},
     {"robot.m_l", "robot:\n  m_l: @\n", "0.2", "heavy", "0", "a number in (0, 1000] [kg]"},
     {"robot.link_length", "robot:\n  link_length: @\n", "0.08", "long", "1e300", "a number in (0, 10] [m]"},
@@ -149,6 +164,8 @@ const std::vector<KeyRow> kSceneKeys = {
     {"initial.pose", "initial:\n  pose: @\n", "air", "[1]", "upside_down", "one of flat, gait_start, air, explicit"},
     {"initial.x", "initial:\n  x: @\n", "0.5", "x", "1e300", "a number in [-10000, 10000] [m]"},
     {"initial.height", "initial:\n  height: @\n", "0.1", "x", "-0.5", "a number in [-0.1, 100] [m]"},
+    {"initial.q", "initial:\n  pose: explicit\n  q: @\n", "[0, 0, 0, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0]", "{a: 1}",
+     "[1e5]", "a number in [-10000, 10000] [rad or m]"},
     {"initial.v", "initial:\n  v: @\n", "0", "{a: 1}", "1e9", "a number in [-1000, 1000]"},
     {"gait.A_p", "gait:\n  A_p: @\n", "pi/4", "x", "7", "a number in [-3.14159, 3.14159] [rad]"},
     {"gait.omega", "gait:\n  omega: @\n", "2*pi", "x", "1e6", "a number in [-100, 100] [rad/s]"},
@@ -250,28 +267,87 @@ TEST(BadInputs, FaultsInASceneForAToolThatIgnoresThem) {
 
 namespace {
 const std::string kSimDriver = "driver:\n  type: sim\n  scene: ../scenes/flat_high_friction.yaml\n";
+const std::string kCan = "rate_hz: 100\ndriver: {type: socketcan, fd: true}\n";
 const std::vector<KeyRow> kDaemonKeys = {
+    {"name", "name: @\n" + kSimDriver, "walker", "[1]", std::string(64, 'w'), "a name of 1 … 63 characters"},
+    {"description", "description: @\n" + kSimDriver, "a walk", "{a: 1}", "", ""},
+    {"log_file", kSimDriver + "log_file: @\n", "/tmp/pedalwave.log", "[1]", "/tmp", "a file path (not a folder"},
     {"rate_hz", "rate_hz: @\n" + kSimDriver, "500", "fast", "1e9", "a rate in (0, 20000] Hz"},
     {"duration", "duration: @\n" + kSimDriver, "2", "long", "1e300", "a number in [0, 1e+07] [s]"},
     {"driver.type", "rate_hz: 250\ndriver:\n  type: @\n", "socketcan", "[1]", "usb", "one of sim, socketcan, serial"},
+    {"driver.scene", "driver:\n  type: sim\n  scene: @\n", "../scenes/stair.yaml", "[1]", "no_such_scene.yaml",
+     "an existing scene file (there is no "},
     {"driver.clock", kSimDriver + "  clock: @\n", "free_running", "[1]", "sundial", "one of lockstep, free_running"},
     {"driver.command_timeout", kSimDriver + "  command_timeout: @\n", "0.1", "x", "1e9", "a number in (0, 10] [s]"},
     {"driver.ifname", "rate_hz: 250\ndriver:\n  type: socketcan\n  ifname: @\n", "can1", "[1]", "a/b", "a network interface name"},
     {"driver.bitrate", "rate_hz: 100\ndriver:\n  type: socketcan\n  bitrate: @\n", "500000", "x", "1e300", "a number in (0, 1e+06]"},
+    {"driver.fd", "rate_hz: 100\ndriver:\n  type: socketcan\n  fd: @\n", "true", "sometimes", "", ""},
+    {"driver.data_bitrate", "rate_hz: 100\ndriver:\n  type: socketcan\n  fd: true\n  data_bitrate: @\n", "2e6", "x",
+     "1e8", "a number in (0, 1.2e+07] [bit/s]"},
     {"driver.max_load", "rate_hz: 100\ndriver:\n  type: socketcan\n  max_load: @\n", "0.5", "x", "2", "a number in (0, 1]"},
     {"driver.baud", "rate_hz: 250\ndriver:\n  type: serial\n  baud: @\n", "1000000", "x", "10", "an integer in [9600, 4000000]"},
     {"driver.return_delay", "rate_hz: 250\ndriver:\n  type: serial\n  return_delay: @\n", "1e-5", "x", "5", "a number in [0, 0.1] [s]"},
+    {"driver.device", "rate_hz: 250\ndriver:\n  type: serial\n  device: @\n", "/dev/ttyS1", "[1]", "ttyUSB0",
+     "an absolute device path"},
+    {"driver.turnaround", "rate_hz: 250\ndriver:\n  type: serial\n  turnaround: @\n", "1e-5", "x", "1", "a number in [0, 0.1] [s]"},
     {"controller.k_c", kSimDriver + "controller:\n  k_c: @\n", "5", "x", "1e300", "a number in [-1000, 1000]"},
     {"controller.K_p", kSimDriver + "controller:\n  K_p: @\n", "30", "{a: 1}", "-1", "a number in [0, 1e+06]"},
     {"controller.pd_placement", kSimDriver + "controller:\n  pd_placement: @\n", "module", "[1]", "cloud", "one of module, host"},
+    {"controller.K_D", kSimDriver + "controller:\n  K_D: @\n", "15", "{a: 1}", "[-1]", "a number in [0, 1e+06] [N·m·s/rad]"},
+    {"controller.tau_max", kSimDriver + "controller:\n  tau_max: @\n", "1.5", "{a: 1}", "-1", "a number in (0, 10000] [N·m]"},
+    {"controller.tau_rate_max", kSimDriver + "controller:\n  tau_rate_max: @\n", "[100, 100, 100, 100, 100]", "{a: 1}", "0",
+     "a number in (0, 1e+09] [N·m/s]"},
+    {"controller.M_d", kSimDriver + "controller:\n  M_d: @\n", "2", "x", "0", "a number in (0, 1e+06] [N·m·s²/rad]"},
+    {"controller.D_d", kSimDriver + "controller:\n  D_d: @\n", "5", "x", "-5", "a number in (0, 1e+06] [N·m·s/rad]"},
+    {"controller.K_d", kSimDriver + "controller:\n  K_d: @\n", "10", "x", "1e7", "a number in (0, 1e+06] [N·m/rad]"},
+    {"controller.eta_min", kSimDriver + "controller:\n  eta_max: 0\n  eta_min: @\n", "-2", "x", "1",
+     "a number <= controller.eta_max = 0"},
+    {"controller.eta_max", kSimDriver + "controller:\n  eta_max: @\n", "2", "x", "7", "a number in [-6.28319, 6.28319] [rad]"},
+    {"controller.gait.A_p", kSimDriver + "controller:\n  gait:\n    A_p: @\n", "0.5", "x", "-4",
+     "a number in [-3.14159, 3.14159] [rad]"},
+    {"controller.gait.omega", kSimDriver + "controller:\n  gait:\n    omega: @\n", "pi", "x", "200",
+     "a number in [-100, 100] [rad/s]"},
+    {"controller.gait.eta", kSimDriver + "controller:\n  gait:\n    eta: @\n", "-2*pi/5", "x", "-7",
+     "a number in [-6.28319, 6.28319] [rad]"},
     {"realtime.priority", kSimDriver + "realtime:\n  priority: @\n", "10", "x", "100", "an integer in [0, 99]"},
+    {"realtime.cpu", kSimDriver + "realtime:\n  cpu: @\n", "0", "x", "-2", "an integer in [-1, 1023]"},
+    {"realtime.lock_memory", kSimDriver + "realtime:\n  lock_memory: @\n", "true", "x", "", ""},
+    {"realtime.prefault_stack", kSimDriver + "realtime:\n  prefault_stack: @\n", "65536", "[1]", "-1",
+     "an integer in [0, 4194304]"},
+    {"realtime.require", kSimDriver + "realtime:\n  require: @\n", "false", "x", "", ""},
+    {"realtime.clock", kSimDriver + "realtime:\n  clock: @\n", "lockstep", "[1]", "monotonic", "one of realtime, lockstep"},
+    {"realtime.overrun_fault_after", kSimDriver + "realtime:\n  overrun_fault_after: @\n", "10", "x", "-1",
+     "an integer in [0, 1073741824]"},
     {"realtime.stale_timeout", kSimDriver + "realtime:\n  stale_timeout: @\n", "0.02", "x", "1e9", "a number in (0, 10] [s]"},
     {"realtime.read_budget", kSimDriver + "realtime:\n  read_budget: @\n", "0.6", "x", "2", "a number in (0, 1]"},
     {"realtime.auto_start", kSimDriver + "realtime:\n  auto_start: @\n", "false", "perhaps", "", ""},
     {"observer.enabled", kSimDriver + "observer:\n  enabled: @\n", "false", "x", "", ""},
+    {"telemetry.enabled", kSimDriver + "telemetry:\n  enabled: @\n", "false", "x", "", ""},
+    {"telemetry.peers", kSimDriver + "telemetry:\n  peers: @\n", "[127.0.0.1]", "x", "[a b]", "an IPv4 address or host name"},
+    {"telemetry.decimation_state", kSimDriver + "telemetry:\n  decimation_state: @\n", "5", "x", "0",
+     "an integer in [1, 100000]"},
+    {"telemetry.decimation_timing", kSimDriver + "telemetry:\n  decimation_timing: @\n", "5", "x", "0",
+     "an integer in [1, 100000]"},
+    {"telemetry.commands", kSimDriver + "telemetry:\n  commands: @\n", "false", "x", "", ""},
+    {"telemetry.amplitude_max", kSimDriver + "telemetry:\n  amplitude_max: @\n", "1", "x", "4", "a number in (0, 3.14159] [rad]"},
+    {"telemetry.eta_min", kSimDriver + "telemetry:\n  eta_min: @\n", "-3", "x", "3.5", "a number <= telemetry.eta_max = 3.2"},
+    {"telemetry.eta_max", kSimDriver + "telemetry:\n  eta_max: @\n", "3", "x", "-3.5", "a number >= telemetry.eta_min = -3.2"},
     {"telemetry.domain_id", kSimDriver + "telemetry:\n  domain_id: @\n", "3", "x", "233", "an integer in [0, 232]"},
     {"telemetry.interface", kSimDriver + "telemetry:\n  interface: @\n", "eth0", "[1]", "a b", "a network interface name"},
     {"telemetry.omega_max", kSimDriver + "telemetry:\n  omega_max: @\n", "6", "x", "1e300", "a number in (0, 100] [rad/s]"},
+    // The robot a bus drives (beside a simulated plant it must be the scene's: DaemonContradictions).
+    {"robot.N", kCan + "robot:\n  N: @\n", "8", "six", "65", "an integer in [2, 64]"},
+    {"robot.m_l", kCan + "robot:\n  m_l: @\n", "0.2", "x", "0", "a number in (0, 1000] [kg]"},
+    {"robot.link_length", kCan + "robot:\n  link_length: @\n", "0.08", "x", "11", "a number in (0, 10] [m]"},
+    {"robot.I_l", kCan + "robot:\n  I_l: @\n", "1e-4", "x", "0", "a number in (0, 1000] [kg·m²]"},
+    {"robot.m_r", kCan + "robot:\n  m_r: @\n", "0.03", "x", "-1", "a number in [0, 1000] [kg]"},
+    {"robot.I_r", kCan + "robot:\n  I_r: @\n", "1e-7", "x", "2", "a number in [0, 1] [kg·m²]"},
+    {"robot.n", kCan + "robot:\n  n: @\n", "100", "x", "-100", "a number in (0, 100000] [-]"},
+    {"robot.K", kCan + "robot:\n  K: @\n", "[3, 3, 3, 3, 3]", "{a: 1}", "[0]", "a number in (0, 1e+06] [N·m/rad]"},
+    {"robot.g", kCan + "robot:\n  g: @\n", "9.81", "x", "1000", "a number in [0, 100] [m/s²]"},
+    {"robot.joints", kCan + "robot:\n  joints: @\n", "rigid", "[1]", "elastic", "one of flexible, rigid"},
+    {"robot.rigid_variant", kCan + "robot:\n  joints: rigid\n  rigid_variant: @\n", "paper", "[1]", "printed",
+     "one of exact_limit, paper"},
 };
 }  // namespace
 
@@ -304,4 +380,151 @@ TEST(BadInputs, DurationProblem) {
   EXPECT_NE(config::duration_problem(std::nan(""), 1000), "");
   EXPECT_NE(config::duration_problem(HUGE_VAL, 1000), "");
   EXPECT_NE(config::duration_problem(1e308, 1000), "");
+}
+
+// A key written with no value (`ground:` alone, `duration:`, `K: ~`) is an error at the key's line,
+// not the default: an empty `ground:` would otherwise run the robot in vacuum. An empty flow list
+// or map is a value.
+TEST(BadInputs, AKeyWithNoValueIsAnErrorNotTheDefault) {
+  const std::string none = " (the key has no value; remove it for the default)";
+  const std::string required = " (the key has no value; it is required)";
+  const std::vector<std::pair<std::string, std::string>> scene = {
+      {"ground:\nduration: 5\n", "bad.yaml:1:1: ground = \"\": expected a map of ground keys" + none},
+      {"duration: 5\ngait: ~\n", "bad.yaml:2:1: gait = \"\": expected a map of gait keys" + none},
+      {"name: x\nduration:\n", "bad.yaml:2:1: duration = \"\": expected a number in (0, 1e+06] [s]" + none},
+      {"ground:\n  k:\n  mu: 0.5\n", "bad.yaml:2:3: ground.k = \"\": expected a number in (0, 1e+07] [N/m]" + none},
+      {"robot:\n  K: null\n", "bad.yaml:2:3: robot.K = \"\": expected a number or a list of numbers" + none},
+      {"robot: {N: 6, joints: }\n", "bad.yaml:1:15: robot.joints = \"\": expected one of flexible, rigid" + none},
+      {"integrator:\n  method: rk4\n  rtol:\n", "bad.yaml:3:3: integrator.rtol = \"\": expected a number in (0, 1] [-]" + none},
+      {"ground: {}\nobstacles:\n  - x_near:\n    width: 0.1\n",
+       "bad.yaml:3:5: obstacles[0].x_near = \"\": expected a number in [-10000, 10000] [m]" + none},
+      {"faults:\n  - type: nan\n    joint:\n", "bad.yaml:3:5: faults[0].joint = \"\": expected an integer in [0, 4]" + none},
+      {"faults:\n  - type:\n    joint: 1\n", "bad.yaml:2:5: faults[0].type = \"\": expected a fault type" + required},
+      {"ground:\n  patches:\n    - x_begin:\n", "bad.yaml:3:7: ground.patches[0].x_begin = \"\": expected a number" + required},
+      {"ground: {}\nobstacles:\n  - {x_near: 0.2}\n  -   # nothing\n\nduration: 1\n",
+       "bad.yaml:4:3: obstacles[1] = \"\": expected a value (the list element is empty: give it one or remove the '-')"},
+      {"robot:\n  K: [1, ~, 1, 1, 1]\n", "bad.yaml:2:10: robot.K[1] = \"\": expected a value (the list element is empty"},
+  };
+  for (const auto& [yaml, expected] : scene) {
+    SCOPED_TRACE(yaml);
+    const std::string e = scene_error(yaml);
+    EXPECT_EQ(e.rfind(expected, 0), 0u) << e;
+    EXPECT_TRUE(one_line(e)) << e;
+  }
+  const std::vector<std::pair<std::string, std::string>> daemon = {
+      {"rate_hz: 500\ndriver:\n", "bad.yaml:2:1: driver = \"\": expected a driver section (type: sim | socketcan | serial)" + required},
+      {"driver:\n  type: sim\n  scene:\n", "bad.yaml:3:3: driver.scene = \"\": expected the scene file the simulated plant runs" },
+      {kSimDriver + "telemetry:\n", "bad.yaml:4:1: telemetry = \"\": expected a map of telemetry keys" + none},
+      {"rate_hz:\n" + kSimDriver, "bad.yaml:1:1: rate_hz = \"\": expected a number" },
+      {kSimDriver + "controller:\n  K_p:\n", "bad.yaml:5:3: controller.K_p = \"\": expected a number or a list of numbers" + none},
+      {kSimDriver + "realtime: {priority: 10, clock: }\n",
+       "bad.yaml:4:26: realtime.clock = \"\": expected one of realtime, lockstep" + none},
+      {kSimDriver + "controller:\n  gait:\n    omega:\n", "bad.yaml:6:5: controller.gait.omega = \"\": expected a number in [-100, 100] [rad/s]" + none},
+      {kSimDriver + "telemetry:\n  peers:\n    - 127.0.0.1\n    -\n",
+       "bad.yaml:7:5: telemetry.peers[1] = \"\": expected a value (the list element is empty"},
+  };
+  for (const auto& [yaml, expected] : daemon) {
+    SCOPED_TRACE(yaml);
+    const std::string e = daemon_error(yaml);
+    EXPECT_EQ(e.rfind(expected, 0), 0u) << e;
+    EXPECT_TRUE(one_line(e)) << e;
+  }
+  // Empty flow lists and maps are values: no faults, no obstacles, the defaults of a section.
+  EXPECT_EQ(scene_error("ground: {}\nobstacles: []\nfaults: []\nrobot: {}\n"), "(no error)");
+  EXPECT_EQ(daemon_error(kSimDriver + "telemetry: {peers: []}\nobserver: {}\n"), "(no error)");
+  EXPECT_EQ(config::parse_scene("ground: {}\n", "ok.yaml").ground_on, true);
+}
+
+// ---- every key has a row ----
+
+namespace {
+
+// The leaf keys a reader accepts, read off its unknown-key messages ("unknown key 'robot.zz_unknown':
+// expected one of N, m_l, …") in every map of the file; `maps` gives each map's path and a file with
+// `@` where a key goes. A key that is itself one of the maps, or a list of them (`obstacles` for
+// `obstacles[0]`), is no leaf: a new section shows up as a leaf without a row until it is probed.
+template <class E>
+std::set<std::string> accepted_leaf_keys(const std::vector<std::pair<std::string, std::string>>& maps, E&& error) {
+  std::set<std::string> keys;
+  for (const auto& [path, yaml] : maps) {
+    const std::string prefix = path.empty() ? "" : path + ".";
+    const std::string e = error(with(yaml, "zz_unknown"));
+    const std::string marker = "unknown key '" + prefix + "zz_unknown': expected one of ";
+    const std::size_t at = e.find(marker);
+    EXPECT_NE(at, std::string::npos) << path << ": " << e;
+    if (at == std::string::npos) continue;
+    std::stringstream list(e.substr(at + marker.size()));
+    for (std::string k; std::getline(list, k, ',');) keys.insert(prefix + k.substr(k.find_first_not_of(' ')));
+  }
+  std::erase_if(keys, [&](const std::string& k) {
+    return std::any_of(maps.begin(), maps.end(),
+                       [&](const auto& m) { return m.first == k || m.first.rfind(k + "[", 0) == 0; });
+  });
+  return keys;
+}
+
+// The keys of `a` that `b` lacks, for a message.
+std::string missing(const std::set<std::string>& a, const std::set<std::string>& b) {
+  std::string out;
+  for (const std::string& k : a)
+    if (!b.count(k)) out += (out.empty() ? "" : ", ") + k;
+  return out;
+}
+
+void expect_a_row_per_key(const std::set<std::string>& accepted, const std::vector<KeyRow>& rows) {
+  std::set<std::string> paths;
+  for (const KeyRow& k : rows) paths.insert(k.path);
+  EXPECT_EQ(missing(accepted, paths), "") << "keys the reader accepts without a row";
+  EXPECT_EQ(missing(paths, accepted), "") << "rows for keys the reader does not accept";
+}
+
+}  // namespace
+
+TEST(BadInputs, EveryKeyTheReadersAcceptHasARow) {
+  std::vector<std::pair<std::string, std::string>> scene = {
+      {"", "@: 1\n"},
+      {"ground.patches[0]", "ground:\n  patches:\n    - {x_begin: 0, @: 1}\n"},
+      {"obstacles[0]", "ground: {}\nobstacles:\n  - {x_near: 0.2, @: 1}\n"},
+      {"faults[0]", "faults:\n  - {type: nan, @: 1}\n"},
+  };
+  for (const char* m : {"robot", "ground", "joint_friction", "torque_limit", "sensor_noise", "initial", "gait",
+                        "integrator"})
+    scene.push_back({m, std::string(m) + ":\n  @: 1\n"});
+  expect_a_row_per_key(accepted_leaf_keys(scene, scene_error), kSceneKeys);
+
+  std::vector<std::pair<std::string, std::string>> daemon = {
+      {"", "@: 1\n" + kSimDriver},
+      {"driver", "driver:\n  type: sim\n  @: 1\n"},
+      {"controller.gait", kSimDriver + "controller:\n  gait:\n    @: 1\n"},
+  };
+  for (const char* m : {"robot", "controller", "realtime", "observer", "telemetry"})
+    daemon.push_back({m, kSimDriver + m + ":\n  @: 1\n"});
+  expect_a_row_per_key(accepted_leaf_keys(daemon, daemon_error), kDaemonKeys);
+}
+
+// The scene's keys are documented (config/scenes/README.md's table): every row's key is named in
+// the table row of its section, and the table lists exactly the sections that have rows.
+TEST(BadInputs, EverySceneKeyWithARowIsInTheReadmeTable) {
+  std::ifstream in(PEDALWAVE_CONFIG_DIR "/scenes/README.md");
+  ASSERT_TRUE(in) << "config/scenes/README.md";
+  std::map<std::string, std::string> table;  // section → its table row
+  const std::regex name("`([a-z_]+)`");
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("| `", 0) != 0) continue;
+    const std::string first = line.substr(0, line.find('|', 1));
+    for (std::sregex_iterator i(first.begin(), first.end(), name), end; i != end; ++i) table[(*i)[1]] = line;
+  }
+  std::set<std::string> sections;
+  for (const KeyRow& k : kSceneKeys) {
+    SCOPED_TRACE(k.path);
+    const std::string section = k.path.substr(0, k.path.find_first_of(".["));
+    const std::string key = k.path.substr(k.path.find_last_of('.') == std::string::npos ? 0 : k.path.find_last_of('.') + 1);
+    sections.insert(section);
+    ASSERT_TRUE(table.count(section)) << "no table row for " << section;
+    EXPECT_TRUE(std::regex_search(table[section], std::regex("(^|[^A-Za-z0-9_])" + key + "([^A-Za-z0-9_]|$)")))
+        << key << " is not named in the row of " << section;
+  }
+  std::set<std::string> documented;
+  for (const auto& [s, row] : table) documented.insert(s);
+  EXPECT_EQ(missing(documented, sections), "") << "sections in the table without rows";
 }

@@ -2,8 +2,11 @@
 // file, the line, the full key path, the value found and what was expected, e.g.
 //   config/scenes/stair.yaml:12:7: ground.mu = "high": expected a number >= 0
 // Unknown keys are errors too (a typo must not silently fall back to a default), and so are
-// duplicate keys at any depth (block or flow maps: `{N: 6, N: 40}`), an empty file, and a path
-// that is not a regular file of at most kMaxFileBytes (a directory, /dev/zero, a pipe).
+// duplicate keys at any depth (block or flow maps: `{N: 6, N: 40}`), a key written with no value
+// (`ground:` alone is not "no ground", `duration:` not the default duration), an empty list
+// element (`-` alone), an empty file, and a path that is not a regular file of at most
+// kMaxFileBytes (a directory, /dev/zero, a pipe). An empty flow list or map (`faults: []`,
+// `ground: {}`) is a value.
 #pragma once
 
 #include <functional>
@@ -35,11 +38,15 @@ class Reader {
   // a regular file or is larger than kMaxFileBytes, an empty document, or a duplicate key).
   static Reader load_file(const std::string& path);
   // Parses text (for tests and inline scenes); `name` stands for the file in messages. Empty text
-  // is an empty map here (inline scenes may be empty); duplicate keys are errors.
+  // is an empty map here (inline scenes may be empty); duplicate keys and empty list elements are
+  // errors.
   static Reader parse(const std::string& text, const std::string& name);
 
   Reader(YAML::Node node, std::string file, std::string path);
 
+  // The key is written, with or without a value: `ground:` alone is given, with none, and every
+  // getter of it throws ("ground = "": expected … (the key has no value; remove it for the
+  // default)") instead of returning the default.
   bool has(const std::string& key) const;
   bool is_map() const { return node_.IsMap(); }
   bool is_sequence() const { return node_.IsSequence(); }
@@ -50,6 +57,10 @@ class Reader {
 
   Reader operator[](const std::string& key) const;  // child map entry (must exist)
   Reader at(std::size_t i) const;                    // sequence element
+  // A key the file must give, with a value: absent → "<path>: expected <expected> (the key is
+  // required)"; no value → "<path> = "": expected <expected> (the key has no value; it is
+  // required)".
+  Reader required(const std::string& key, const std::string& expected) const;
 
   // Scalars of this node.
   double as_number() const;
@@ -77,20 +88,28 @@ class Reader {
   // A number or a list of numbers.
   std::vector<double> numbers(const std::string& key) const;
 
-  // Every key of this map must be one of `allowed`.
+  // Every key of this map must be one of `allowed` (not a map: "expected a map of <path> keys").
   void allow_only(std::initializer_list<const char*> allowed) const;
 
-  // Throws ConfigError: "<file>:<line>:<col>: <path> = <value>: expected <expected>".
+  // Throws ConfigError: "<file>:<line>:<col>: <path> = <value>: expected <expected>"; a key with
+  // no value: "<path> = "": expected <expected> (the key has no value; remove it for the
+  // default)", at the key's line.
   [[noreturn]] void fail(const std::string& expected) const;
   [[noreturn]] void fail_key(const std::string& key, const std::string& expected) const;
 
  private:
+  // `mark`: where the node stands; a key with no value stands at its key (yaml-cpp marks the
+  // empty value at the next token, often on a later line).
+  Reader(YAML::Node node, std::string file, std::string path, YAML::Mark mark);
   std::string location() const;
   std::string child_path(const std::string& key) const;
+  // fail() with `note` in parentheses after the expectation ("" = none).
+  [[noreturn]] void fail_with(const std::string& expected, const std::string& note) const;
 
   YAML::Node node_;
   std::string file_;
   std::string path_;
+  YAML::Mark mark_;
 };
 
 }  // namespace pedalwave::config

@@ -164,6 +164,7 @@ const std::vector<KeyRow> kSceneKeys = {
     {"initial.pose", "initial:\n  pose: @\n", "air", "[1]", "upside_down", "one of flat, gait_start, air, explicit"},
     {"initial.x", "initial:\n  x: @\n", "0.5", "x", "1e300", "a number in [-10000, 10000] [m]"},
     {"initial.height", "initial:\n  height: @\n", "0.1", "x", "-0.5", "a number in [-0.1, 100] [m]"},
+    {"initial.theta", "initial:\n  pose: gait_start\n  theta: @\n", "0.3", "x", "4", "a number in [-3.14159, 3.14159] [rad]"},
     {"initial.q", "initial:\n  pose: explicit\n  q: @\n", "[0, 0, 0, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0]", "{a: 1}",
      "[1e5]", "a number in [-10000, 10000] [rad or m]"},
     {"initial.v", "initial:\n  v: @\n", "0", "{a: 1}", "1e9", "a number in [-1000, 1000]"},

@@ -255,6 +255,25 @@ TEST_F(RuntimeCli, PlantThatGoesNumericallyWrongExits3WithTheStabilityAdvice) {
   EXPECT_EQ(out().find("forward speed"), std::string::npos) << out();
 }
 
+// Issue 15: explicit Euler at h = 1e-3 s (≈ 2.3× its stability limit, set by the module's damping)
+// diverges, and the runtime's "implausible joint" check stops the run while every state is still
+// finite: the plant never reports a failed step. The fault is the integrator's (model::check
+// predicts the growth: CheckLevel::kError), so the run is numerically wrong — exit 3 with the
+// advice, no speed — not a robot fault (exit 4, as before).
+TEST_F(RuntimeCli, PlantBeyondItsStabilityLimitExits3EvenBeforeItOverflows) {
+  const std::string scene = flat_scene("euler.yaml", {{"integrator", "{method: euler, h: 1.0e-3}"}});
+  const std::string cfg = sim_config("euler_cfg.yaml", scene);
+  EXPECT_EQ(run("-c '" + cfg + "' --duration 5"), 3) << out() << err();
+  EXPECT_NE(err().find("diverging beyond its stability limit"), std::string::npos) << err();
+  EXPECT_NE(err().find("use h ≤"), std::string::npos) << err();
+  EXPECT_EQ(out().find("forward speed"), std::string::npos) << out();
+  EXPECT_NE(out().find("fault implausible"), std::string::npos) << "the runtime's own verdict stays in the log\n"
+                                                                 << out();
+  // The same scene at a stable step is a normal run.
+  const std::string fine = flat_scene("euler_fine.yaml", {{"integrator", "{method: euler, h: 1.0e-4}"}});
+  EXPECT_EQ(run("-c '" + sim_config("euler_fine_cfg.yaml", fine) + "' --duration 1"), 0) << out() << err();
+}
+
 // Issue 15: an operator's emergency stop — pedalwave_monitor --command estop over DDS, as a person
 // at another terminal sends it (README: the runtime's exit status table) — ends the daemon with
 // its own exit status 5, distinct from a normal end (0) and a fault (4).

@@ -303,7 +303,7 @@ int exit_code(const runtime::RunResult& r) noexcept {
 }
 
 int exit_code(const DaemonResult& r) noexcept {
-  return r.plant_status != model::StepStatus::kOk ? kExitNumerical : exit_code(r.run);
+  return r.plant_failed() ? kExitNumerical : exit_code(r.run);
 }
 
 namespace {
@@ -560,7 +560,16 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
     const model::Model& m = sim->sim().plant().model();
     model::Data data(m);
     res.plant_status = sim->plant_status();
-    if (res.plant_status != model::StepStatus::kOk) {
+    if (res.plant_status == model::StepStatus::kOk && res.run.fault == runtime::FaultClass::kImplausible) {
+      try {
+        const double duration = cfg.duration > 0 ? cfg.duration : cfg.driver.scene.duration;
+        res.plant_unstable = model::check(cfg.driver.scene, plant_gains(cfg.controller.pd),
+                                          cfg.driver.scene.integrator, duration)
+                                 .level == model::CheckLevel::kError;
+      } catch (const std::exception&) {  // no prediction: the fault stands as the runtime saw it
+      }
+    }
+    if (res.plant_failed()) {
       // The plant went numerically wrong: the fault the runtime saw is the simulation's, its
       // states before the failure are already wrong (no speed from them), and the step to use is
       // what pedalwave_sim says after such a run.
@@ -569,7 +578,11 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
                                                    cfg.driver.scene.integrator,
                                                    cfg.duration > 0 ? cfg.duration : cfg.driver.scene.duration);
       std::ostringstream os;
-      os << "plant: " << model::to_string(res.plant_status) << " at t = " << res.plant_t
+      os << "plant: "
+         << (res.plant_unstable ? std::string("diverging (its step is beyond the stability limit; the "
+                                              "implausible measurements are the integrator's)")
+                                : std::string(model::to_string(res.plant_status)))
+         << " at t = " << res.plant_t
          << " s of simulated plant: the simulation went numerically wrong (no speed); stability: "
          << res.plant_advice << "\n";
       out << os.str();

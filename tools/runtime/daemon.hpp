@@ -56,6 +56,12 @@ struct DaemonResult {
   model::StepStatus plant_status = model::StepStatus::kOk;
   double plant_t = 0.0;        // the plant's last good time [s] (plant_status not kOk)
   std::string plant_advice;    // its stability limit and a step that works (simloop::stability_advice)
+  // The run ended on implausible measurements while the plant's fixed step is above its predicted
+  // stability limit with a growth ≥ ×10 over the run (model::check: CheckLevel::kError): the
+  // plant diverged before it overflowed (explicit Euler at h = 1e-3 s, ~2.3× its limit, stops on
+  // "implausible joint 1" with every state still finite). Numerically wrong too, not a robot fault.
+  bool plant_unstable = false;
+  bool plant_failed() const { return plant_status != model::StepStatus::kOk || plant_unstable; }
 };
 
 // Exit status of pedalwave_runtime (README, "Exit status of pedalwave_runtime"; DEPLOY.md,

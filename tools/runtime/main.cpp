@@ -99,9 +99,11 @@ int main(int argc, char** argv) {
   }
   try {
     const auto r = app::run_daemon(cfg, opt);
-    if (r.plant_status != pedalwave::model::StepStatus::kOk)  // numerically wrong, not a robot fault
+    if (r.plant_failed())  // numerically wrong, not a robot fault
       std::fprintf(stderr, "%s: the simulated plant failed at t = %g s: %s; %s\n", kTool, r.plant_t,
-                   std::string(pedalwave::model::to_string(r.plant_status)).c_str(), r.plant_advice.c_str());
+                   r.plant_unstable ? "diverging beyond its stability limit"
+                                    : std::string(pedalwave::model::to_string(r.plant_status)).c_str(),
+                   r.plant_advice.c_str());
     return app::exit_code(r);
   } catch (const app::BadInput& e) {
     return cli::bad_input(kTool, e.what());

@@ -4,7 +4,8 @@
 // (`bad.yaml:3:6: ground.k = "1e308": expected a number in (0, 1e+07] [N/m]`). A table drives it:
 // one row per key, its YAML with `@` where the value goes. It stays whole: a key the readers accept
 // without a row fails EveryKeyTheReadersAcceptHasARow, a scene key missing from
-// config/scenes/README.md's table fails EverySceneKeyWithARowIsInTheReadmeTable.
+// config/scenes/README.md's table fails EverySceneKeyWithARowIsInTheReadmeTable, a daemon key
+// missing from config/runtime/README.md's tables fails EveryDaemonKeyWithARowIsInTheReadmeTable.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -528,4 +530,45 @@ TEST(BadInputs, EverySceneKeyWithARowIsInTheReadmeTable) {
   std::set<std::string> documented;
   for (const auto& [s, row] : table) documented.insert(s);
   EXPECT_EQ(missing(documented, sections), "") << "sections in the table without rows";
+}
+
+// The daemon configuration's keys are documented (config/runtime/README.md: a table per section,
+// under a heading naming it, "## Top level", "## `driver`", …): every row's key, its path below the
+// section (`ifname`, `gait.A_p`), is named in the first cell of a row of its section's table, and
+// every key those cells name has a row (the top level's table also names the sections).
+TEST(BadInputs, EveryDaemonKeyWithARowIsInTheReadmeTable) {
+  std::ifstream in(PEDALWAVE_CONFIG_DIR "/runtime/README.md");
+  ASSERT_TRUE(in) << "config/runtime/README.md";
+  std::map<std::string, std::set<std::string>> table;  // section ("" = top level) → the keys its table names
+  const std::regex heading("^#+ (`([a-z_]+)`|Top level)\\s*$");
+  const std::regex name("`([A-Za-z_][A-Za-z0-9_.]*)`");
+  std::optional<std::string> section;  // none: a heading that names no section
+  for (std::string line; std::getline(in, line);) {
+    std::smatch m;
+    if (line.rfind('#', 0) == 0) {
+      section.reset();
+      if (std::regex_match(line, m, heading)) section = m[2].matched ? m[2].str() : std::string();
+      continue;
+    }
+    if (!section || line.rfind("| `", 0) != 0) continue;
+    const std::string first = line.substr(0, line.find('|', 1));
+    for (std::sregex_iterator i(first.begin(), first.end(), name), end; i != end; ++i)
+      table[*section].insert((*i)[1]);
+  }
+  std::set<std::string> paths;
+  for (const KeyRow& k : kDaemonKeys) {
+    SCOPED_TRACE(k.path);
+    paths.insert(k.path);
+    const std::size_t dot = k.path.find('.');
+    const std::string sec = dot == std::string::npos ? "" : k.path.substr(0, dot);
+    const std::string key = dot == std::string::npos ? k.path : k.path.substr(dot + 1);
+    ASSERT_TRUE(table.count(sec)) << "no table for " << (sec.empty() ? "the top level" : sec);
+    EXPECT_TRUE(table[sec].count(key)) << key << " is not named in the table of "
+                                       << (sec.empty() ? "the top level" : sec);
+  }
+  std::set<std::string> documented;
+  for (const auto& [sec, keys] : table)
+    for (const std::string& k : keys)
+      if (!(sec.empty() && table.count(k))) documented.insert(sec.empty() ? k : sec + "." + k);
+  EXPECT_EQ(missing(documented, paths), "") << "keys in the README's tables without a row";
 }

@@ -187,6 +187,95 @@ TEST(Checks, LostSamplesDoNotBlindTheEncoderCheckOverModuleTiming) {
   EXPECT_LE(k, 200 + 25);  // the jump window (20 cycles) after the spike
 }
 
+// At 100 Hz over a bus (module timing records) the gait's commands arrive inside every interval
+// (0.3 … 0.7 of a period after the sample) and move β̇_ref by ≈ 0.08 rad/s each: the module PD
+// (k_d = 15) makes β̇ follow within J/k_d = 0.2 ms, a kink the trapezoid through the two samples
+// misses by up to dt/2·|Δβ̇| = 3.9e-4 rad, 0.8 of the consistency threshold. Modelled (the
+// observer README §1.2), the check runs every cycle: an encoder offset jump of 0.02 rad is an
+// encoder_jump on its joint, and the same stream without it raises nothing (β quantized to the
+// wire's 1e-4 rad, β̇ to 1e-3 rad/s, samples ±60 µs off the grid). Before, the check paused for
+// good at 100 Hz and the jump went unseen by it (over the VM's bus the residual then named it
+// deflection_bias).
+int first_fault_at_100hz(bool jump, FaultClass& fault, int& joint) {
+  auto p = params();
+  p.period = 1e-2;
+  pw::observer::FaultObserver o(p);
+  const double T = p.period, J = p.robot.n * p.robot.n * p.robot.I_r, kd = 15.0, tau = J / kd;
+  constexpr int kRing = 16;
+  std::array<pw::drivers::Command, kRing> ring{};
+  constexpr std::uint64_t kJump = 400;  // t = 4 s
+  struct Motion {
+    double tau = 0, t = 0, beta = 0, rate = 0, target = 0;
+    std::int64_t applied_ns = 0;
+    std::uint64_t applied = pw::drivers::kNoCommandSeq;
+    void advance(double to) {  // J β̈ = k_d (target − β̇), exactly
+      const double h = to - t, e = std::exp(-h / tau);
+      beta += target * h + (rate - target) * tau * (1 - e);
+      rate = target + (rate - target) * e;
+      t = to;
+    }
+  };
+  std::array<Motion, 5> m{};
+  for (Motion& x : m) x.tau = tau;
+  const std::int64_t base = 1'000'000'000;
+  pw::drivers::Feedback fb{};
+  fb.joints = 5;
+  fb.timing = pw::drivers::FeedbackTiming::kModule;
+  for (std::uint64_t k = 0; k < 800; ++k) {
+    const double tk = static_cast<double>(k) * T;
+    for (int j = 0; j < 5; ++j) {
+      const auto i = static_cast<std::size_t>(j);
+      // The command written at cycle k − 1 arrived 0.3 … 0.7 of a period after its sample.
+      if (k >= 1) {
+        const double arrive = tk - T + (0.3 + 0.1 * j) * T;
+        m[i].advance(arrive);
+        m[i].target = ring[(k - 1) % kRing].beta_dot_ref[i];
+        m[i].applied = k - 1;
+        m[i].applied_ns = base + std::llround(arrive * 1e9);
+      }
+      const double jitter = 1e-6 * static_cast<double>(static_cast<int>((k * 7919 + 31 * i) % 121) - 60);
+      m[i].advance(tk + jitter);
+      fb.beta[i] = 1e-4 * std::round(m[i].beta / 1e-4) + (jump && j == 2 && k >= kJump ? 0.02 : 0.0);
+      fb.beta_dot[i] = 1e-3 * std::round(m[i].rate / 1e-3);
+      fb.deflection[i] = 1e-6 * static_cast<double>(static_cast<int>(k % 3) - 1);  // alive, K·d ≈ 0
+      fb.status[i] = 0;
+      fb.sample_ns[i] = base + std::llround((tk + jitter) * 1e9);
+      fb.applied_seq[i] = m[i].applied;
+      fb.applied_ns[i] = m[i].applied_ns;
+    }
+    fb.seq = k + 1;
+    const pw::drivers::CommandHistory cmds(ring.data(), kRing, k >= 1 ? k - 1 : pw::drivers::kNoCommandSeq);
+    o.observe(fb, k >= 1 ? cmds : pw::drivers::CommandHistory(pw::drivers::CommandHistory::all_off()), tk, T);
+    if (o.fault_count() > 0) {
+      fault = o.faults()[0].fault;
+      joint = o.faults()[0].joint;
+      return static_cast<int>(k);
+    }
+    // This cycle's command: the gait's rate, 2.47 cos(π t + j·η), on every joint (torque on).
+    pw::drivers::Command& c = ring[k % kRing];
+    c = pw::drivers::Command{};
+    c.seq = k;
+    c.joints = 5;
+    for (std::size_t i = 0; i < 5; ++i) {
+      c.kd[i] = kd;
+      c.beta_dot_ref[i] = 2.47 * std::cos(M_PI * tk - 1.2566 * static_cast<double>(i));
+    }
+  }
+  return -1;
+}
+
+TEST(Checks, TheEncoderCheckRunsAt100HzWithCommandsInsideEveryInterval) {
+  FaultClass fault = FaultClass::kNone;
+  int joint = -1;
+  EXPECT_EQ(first_fault_at_100hz(false, fault, joint), -1)
+      << pw::runtime::to_string(fault) << " on joint " << joint;
+  const int k = first_fault_at_100hz(true, fault, joint);
+  ASSERT_GE(k, 400) << pw::runtime::to_string(fault) << " on joint " << joint;
+  EXPECT_EQ(fault, FaultClass::kEncoderJump) << pw::runtime::to_string(fault);
+  EXPECT_EQ(joint, 2);
+  EXPECT_LE(k, 400 + 25);  // the jump window (20 cycles) after the spike
+}
+
 // The start from rest, as over a bus: the modules torque-off, then the first command (k_d = 15,
 // the gait's rate β̇_ref = 2.47 rad/s) applied 0.3 of a period after a sample; a second command
 // with the same law 0.9 of a period later (in the next interval). The motor follows within J/k_d (0.2 ms): J β̈ =

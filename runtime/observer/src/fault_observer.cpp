@@ -309,14 +309,47 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
   const bool sensor_latched = joint_latched(j);
 
   // ---- Kinematic consistency of the encoder: c = Δβ − T (β̇_0 + β̇_1)/2 ----
-  const double c = (b1 - b0) - 0.5 * dt * (bd0 + bd1);
-  c_[k] = c;
   // The threshold is set for one period. Over a longer measured interval (a module that sampled
   // late, a late answer used) the trapezoid's own error grows with the interval squared (a change
   // of β̈ inside it: ≤ dt²/8 · Δβ̈), so the threshold does too; an offset jump (≥ 10× the
   // threshold) still stands out over three periods.
   const double stretch = iv.nominal ? 1.0 : std::max(1.0, dt / p_.period);
   const double c_threshold = p_.consistency_threshold * stretch * stretch;
+  double c = (b1 - b0) - 0.5 * dt * (bd0 + bd1);
+  // A command that takes effect inside the interval moves β̇ by the module PD's fast response:
+  // J β̈ + (k_d + b_m) β̇ = (law offset − k_p β − K·deflection), so β̇ follows its target with the
+  // lag τ = J/(k_d + b_m) (0.2 ms) and the target steps by Δ = Δ(law offset − k_p β)/(k_d + b_m).
+  // The trapezoid through the two samples misses that step's shape by up to dt/2 · |Δ|; with the
+  // step modelled (β̇ = linear + Δ(1 − e^{−(t−t_a)/τ}) after t_a, s = t₁ − t_a, f = 1 − e^{−s/τ}),
+  // ∫β̇ = dt (β̇₀ + β̇₁)/2 + Δ (s − τ f − dt f/2) exactly, and what is left is the lag's own
+  // shape, ≤ |Δ|·τ (on the virtual robot also its plant step h, as long again). At 100 Hz the
+  // gait moves β̇_ref by ≈ 0.08 rad/s per cycle: dt/2 · |Δ| = 3.9e-4 rad, 0.8 of the threshold
+  // (measured in lockstep at 100 Hz: |c| up to 4.4e-4 rad in healthy walking; over a bus the
+  // check paused for good there, and an encoder offset jump over the VM's bus then went to the
+  // residual and was named deflection_bias); the modelled step leaves ≤ 2·|Δ|·τ = 3e-5 rad.
+  // Modelled only for a damped module (τ < dt/10; an undamped one, a host-side PD with k_d = 0,
+  // moves β̈, not β̇) and where the damping does not change (torque on/off: paused below).
+  const double tau = J_ / std::max(cmd.kd[k] + p_.motor_viscous, 1e-12);
+  const bool damped = tau < 0.1 * dt;
+  double kink = 0.0, moved = 0.0;  // the step model's share of Δβ [rad]; Σ|Δ| [rad/s]
+  bool off_step = false;
+  const auto add_switch = [&](const Command& was, const Command& now, double ta) {
+    off_step = off_step || was.torque_off != now.torque_off || damping_changes(was, now, k);
+    const double sa = dt - ta, beta_a = b0 + (b1 - b0) * (ta / dt);
+    const auto target = [&](const Command& x) {
+      return x.torque_off ? 0.0 : law_offset(x, k) - x.kp[k] * beta_a;
+    };
+    const double jump = (target(now) - target(was)) / (cmd.kd[k] + p_.motor_viscous);
+    const double f = 1.0 - std::exp(-sa / tau);
+    kink += jump * (sa - tau * f - 0.5 * dt * f);
+    moved += std::abs(jump);
+  };
+  // Nominal timing: this cycle's command acts from the sample t₀ on (the one before it until t₀).
+  if (iv.before) add_switch(*iv.before, *iv.cmd[0], 0.0);
+  for (int i = 1; i < iv.pieces; ++i)
+    add_switch(*iv.cmd[static_cast<std::size_t>(i - 1)], *iv.cmd[static_cast<std::size_t>(i)],
+               iv.start[static_cast<std::size_t>(i)]);
+  if (damped && !off_step) c -= kink;
   if (iv.nominal) {
     // A step in the commanded rate (start, hold, resume) moves the motor within ~J/k_d, faster
     // than the trapezoid follows: no consistency verdicts for a few cycles.
@@ -325,21 +358,22 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
     // After an overrun the gap spans skipped periods: the trapezoid is no longer exact over it and
     // the module's set-points moved meanwhile — pause the verdicts as for a command step.
     if (dt > 1.5 * p_.period) s.cmd_settle = p_.command_settle;
-  } else {
+  } else if (damped && !off_step) {
     // Measured timing (also across lost samples: the interval is the two samples' own times, the
     // threshold stretched with it; pausing instead after every lost sample left a few per cent of
-    // loss on a loaded bus blind to an offset jump for a fifth of the time): the trapezoid's error
-    // over this interval is the module PD's fast response
-    // to the command change inside it: β̇ moves by ≈ Δc0 / max(k_d, J/dt) within ~J/k_d, so
-    // |error| ≲ dt/2 · |Δc0| / max(k_d, J/dt). Verdicts pause only while that bound exceeds a
-    // quarter of the threshold (a start, hold or resume; a command after many skipped periods).
+    // loss on a loaded bus blind to an offset jump for a fifth of the time): verdicts pause only
+    // while the step model's own error bound exceeds a quarter of the threshold (a start, hold or
+    // resume: Δ ≈ 2.5 rad/s).
+    if (2.0 * moved * tau > 0.25 * c_threshold) s.cmd_settle = p_.command_settle;
+  } else {
+    // A torque on/off or damping change, or an undamped module: the old bound dt/2 · |Δc₀| /
+    // max(k_d, J/dt) on the trapezoid's error.
     const Command& c_first = *iv.cmd[0];
     const double dc0 = iv.pieces > 1 ? std::abs(law_offset(cmd, k) - law_offset(c_first, k)) : 0.0;
     const double stiff = std::max(cmd.kd[k], J_ / dt);
-    const bool off_step = iv.pieces > 1 && cmd.torque_off != c_first.torque_off;
-    if (off_step || 0.5 * dt * dc0 / stiff > 0.25 * c_threshold)
-      s.cmd_settle = p_.command_settle;
+    if (off_step || 0.5 * dt * dc0 / stiff > 0.25 * c_threshold) s.cmd_settle = p_.command_settle;
   }
+  c_[k] = c;
   s.prev_ref_rate = cmd.beta_dot_ref[k];
   const bool settled = elapsed_ >= p_.settle;
   if (s.cmd_settle > 0) {
@@ -568,11 +602,13 @@ bool FaultObserver::make_interval(const Feedback& fb, const CommandHistory& cmds
       iv.pieces = 1;
       iv.cmd[0] = &cmds.last();
       iv.start[0] = 0.0;
+      iv.before = iv.cmd[0]->seq > 0 ? cmds.find(iv.cmd[0]->seq - 1) : nullptr;
       return true;
     }
     iv.dt = elapsed_ - s.t_prev;
     const std::uint64_t first = s.nominal_seq, last = cmds.last().seq;
     if (last < first || last - first > static_cast<std::uint64_t>(s.gap)) return false;
+    iv.before = first > 0 ? cmds.find(first - 1) : nullptr;
     iv.pieces = static_cast<int>(last - first) + 1;
     for (int i = 0; i < iv.pieces; ++i) {
       const auto iu = static_cast<std::size_t>(i);

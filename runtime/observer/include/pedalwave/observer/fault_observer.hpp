@@ -213,6 +213,7 @@ class FaultObserver {
     std::array<const drivers::Command*, kMaxGap + 2> cmd{};  // piece i's command
     std::array<double, kMaxGap + 2> start{};                 // piece i from this far in [s]
     bool nominal = true;                     // FeedbackTiming::kNominal
+    const drivers::Command* before = nullptr;  // kNominal: the command acting until t₀ (if known)
     bool gap = false;                        // spans lost samples
   };
   bool make_interval(const drivers::Feedback& fb, const drivers::CommandHistory& cmds, int j,

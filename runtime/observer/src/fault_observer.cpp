@@ -349,7 +349,14 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
   for (int i = 1; i < iv.pieces; ++i)
     add_switch(*iv.cmd[static_cast<std::size_t>(i - 1)], *iv.cmd[static_cast<std::size_t>(i)],
                iv.start[static_cast<std::size_t>(i)]);
+  // A spike is a β that neither hypothesis explains: the module's PD answered the command (c
+  // against the step model) or its output did not (torque lost: the plain trapezoid). Judged on
+  // the model alone, a module whose torque was lost showed |c| = |kink| every cycle (up to 3.9e-4
+  // rad at 100 Hz) and was named encoder_noise over the VM's bus before the residual named the
+  // actuator; an encoder offset jump (0.02 rad) is far outside both.
+  const double c_plain = c;
   if (damped && !off_step) c -= kink;
+  const double c_either = std::abs(c_plain) < std::abs(c) ? c_plain : c;
   if (iv.nominal) {
     // A step in the commanded rate (start, hold, resume) moves the motor within ~J/k_d, faster
     // than the trapezoid follows: no consistency verdicts for a few cycles.
@@ -380,7 +387,7 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
     --s.cmd_settle;
   } else if (!settled) {
   } else if (s.spike_wait > 0) {
-    if (std::abs(c) > c_threshold) ++s.spikes;
+    if (std::abs(c_either) > c_threshold) ++s.spikes;
     if (s.spikes >= p_.noise_spikes) {
       latch(FaultClass::kEncoderNoise, j, t, s.spike_value, p_.consistency_threshold, 0.0);
       s.spike_wait = 0;
@@ -388,7 +395,7 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
       // One isolated spike, the encoder alive afterwards: an offset jump.
       latch(FaultClass::kEncoderJump, j, t, s.spike_value, p_.consistency_threshold, s.spike_value);
     }
-  } else if (std::abs(c) > c_threshold && !sensor_latched) {
+  } else if (std::abs(c_either) > c_threshold && !sensor_latched) {
     s.spike_wait = p_.jump_window;
     s.spikes = 0;
     s.spike_value = c;

@@ -80,6 +80,28 @@ void read_controller(const Reader& r, DaemonConfig& c) {
   }
 }
 
+// Which driver types each key of `driver:` belongs to (README "driver", its type column). A key
+// of another type is refused, not ignored: `{type: sim, baud: 1}` is a file that says two things.
+struct DriverKey {
+  const char* key;
+  const char* owner;  // for the message: "the serial driver's", "the socketcan and serial drivers'"
+  bool sim, socketcan, serial;
+};
+constexpr DriverKey kDriverKeys[] = {
+    {"scene", "the sim driver's", true, false, false},
+    {"clock", "the sim driver's", true, false, false},
+    {"command_timeout", "the sim driver's", true, false, false},
+    {"ifname", "the socketcan driver's", false, true, false},
+    {"fd", "the socketcan driver's", false, true, false},
+    {"bitrate", "the socketcan driver's", false, true, false},
+    {"data_bitrate", "the socketcan driver's", false, true, false},
+    {"max_load", "the socketcan and serial drivers'", false, true, true},
+    {"device", "the serial driver's", false, false, true},
+    {"baud", "the serial driver's", false, false, true},
+    {"return_delay", "the serial driver's", false, false, true},
+    {"turnaround", "the serial driver's", false, false, true},
+};
+
 void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) {
   r.allow_only({"type", "scene", "clock", "command_timeout", "ifname", "fd", "bitrate",
                 "data_bitrate", "max_load", "device", "baud", "return_delay", "turnaround"});
@@ -88,6 +110,14 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
   d.kind = type == "socketcan" ? DriverKind::kSocketCan
            : type == "serial"  ? DriverKind::kSerial
                                : DriverKind::kSim;
+  for (const DriverKey& k : kDriverKeys) {
+    const bool applies = d.kind == DriverKind::kSim         ? k.sim
+                         : d.kind == DriverKind::kSocketCan ? k.socketcan
+                                                            : k.serial;
+    if (!applies && r.has(k.key))
+      r[k.key].fail(std::string("no ") + k.key + " with type: " + type + " (" + k.key + " is " + k.owner +
+                    (r.has("type") ? "" : "; type: sim is the default") + ")");
+  }
   const double period = 1.0 / c.runtime.rt.rate_hz;
   const int joints = c.robot.N - 1;
   if (d.kind == DriverKind::kSim) {

@@ -374,6 +374,78 @@ TEST(BadInputs, DaemonContradictionsAreRefused) {
   EXPECT_NE(e.find("driver.scene: /dev/null: is not a regular file"), std::string::npos) << e;
 }
 
+// A driver key belongs to its types (README "driver", the type column); beside another type it is
+// refused at its line, naming the key and the type, not ignored unchecked ({type: sim, ifname: a/b,
+// baud: 1, device: rel} loaded). Every driver row's key is here, and the README's column says the
+// same.
+namespace {
+const std::map<std::string, std::set<std::string>> kDriverKeyTypes = {
+    {"scene", {"sim"}},          {"clock", {"sim"}},         {"command_timeout", {"sim"}},
+    {"ifname", {"socketcan"}},   {"fd", {"socketcan"}},      {"bitrate", {"socketcan"}},
+    {"data_bitrate", {"socketcan"}}, {"max_load", {"socketcan", "serial"}},
+    {"device", {"serial"}},      {"baud", {"serial"}},       {"return_delay", {"serial"}},
+    {"turnaround", {"serial"}},
+};
+}  // namespace
+
+TEST(BadInputs, DriverKeysOfAnotherTypeAreRefused) {
+  const std::map<std::string, std::string> base = {
+      {"sim", "driver:\n  type: sim\n  scene: ../scenes/flat_high_friction.yaml\n"},
+      {"socketcan", "rate_hz: 100\ndriver:\n  type: socketcan\n"},
+      {"serial", "rate_hz: 250\ndriver:\n  type: serial\n"},
+  };
+  std::set<std::string> rows;
+  for (const KeyRow& k : kDaemonKeys) {
+    if (k.path.rfind("driver.", 0) != 0 || k.path == "driver.type") continue;
+    const std::string key = k.path.substr(7);
+    rows.insert(key);
+    ASSERT_TRUE(kDriverKeyTypes.count(key)) << key << ": which driver types is it for?";
+    const std::set<std::string>& types = kDriverKeyTypes.at(key);
+    std::string owner;
+    for (const char* t : {"sim", "socketcan", "serial"})  // the order of `type`'s choices
+      if (types.count(t)) owner += (owner.empty() ? "" : " and ") + std::string(t);
+    owner += types.size() > 1 ? " drivers'" : " driver's";
+    for (const auto& [type, yaml] : base) {
+      if (types.count(type) || key == "scene") continue;  // a sim base gives its scene already
+      SCOPED_TRACE(key + " with type: " + type);
+      const std::string e = daemon_error(yaml + "  " + key + ": " + k.good + "\n");
+      EXPECT_EQ(e, "bad.yaml:4:" + std::to_string(5 + key.size()) + ": " + k.path + " = " + shown(k.good) +
+                       ": expected no " + key + " with type: " + type + " (" + key + " is the " + owner + ")");
+    }
+    if (!types.count("socketcan") && !types.count("serial")) continue;
+    // The default type is sim: said so.
+    const std::string e = daemon_error("driver:\n  scene: ../scenes/flat_high_friction.yaml\n  " + key + ": " +
+                                       k.good + "\n");
+    EXPECT_NE(e.find("expected no " + key + " with type: sim (" + key + " is the " + owner +
+                     "; type: sim is the default)"), std::string::npos) << e;
+  }
+  std::set<std::string> table;
+  for (const auto& [key, types] : kDriverKeyTypes) table.insert(key);
+  EXPECT_EQ(table, rows) << "the driver keys here and the driver rows";
+  // The audit's file, and a key of the right type with a value of the wrong type still says so.
+  std::string e = daemon_error("driver: {type: sim, scene: ../scenes/flat_high_friction.yaml, ifname: 'a/b', "
+                               "baud: 1, device: rel}\n");
+  EXPECT_NE(e.find("driver.ifname = \"a/b\": expected no ifname with type: sim (ifname is the socketcan "
+                   "driver's)"), std::string::npos) << e;
+  e = daemon_error("rate_hz: 250\ndriver: {type: serial, fd: maybe}\n");
+  EXPECT_EQ(e, "bad.yaml:2:28: driver.fd = \"maybe\": expected no fd with type: serial (fd is the socketcan "
+               "driver's)");
+  // The README's driver table says the same in its type column.
+  std::ifstream in(PEDALWAVE_CONFIG_DIR "/runtime/README.md");
+  ASSERT_TRUE(in);
+  bool in_driver = false;
+  std::map<std::string, std::set<std::string>> readme;
+  const std::regex row("^\\| `([a-z_]+)` \\| ([a-z, ]+) \\|.*");
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind('#', 0) == 0) in_driver = line == "## `driver`";
+    std::smatch m;
+    if (!in_driver || !std::regex_match(line, m, row) || m[1] == "type") continue;
+    std::stringstream list(m[2].str());
+    for (std::string t; std::getline(list, t, ',');) readme[m[1]].insert(t.substr(t.find_first_not_of(' ')));
+  }
+  EXPECT_EQ(readme, kDriverKeyTypes) << "config/runtime/README.md's driver table, its type column";
+}
+
 TEST(BadInputs, DurationProblem) {
   EXPECT_EQ(config::duration_problem(0, 1000), "");
   EXPECT_EQ(config::duration_problem(5, 1000), "");

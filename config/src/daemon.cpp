@@ -73,7 +73,8 @@ void read_controller(const Reader& r, DaemonConfig& c) {
   if (r.has("tau_max")) p.limits.tau_max = r.bounded_numbers("tau_max", 0, 1e4, "N·m", true);
   if (r.has("tau_rate_max")) p.limits.tau_rate_max = r.bounded_numbers("tau_rate_max", 0, 1e9, "N·m/s", true);
   if (r.has("gait")) {
-    const model::GaitParams g = read_gait(r["gait"]);
+    // A_p ≥ 0: the controller refuses a negative amplitude, later and without a line.
+    const model::GaitParams g = read_gait(r["gait"], 0.0);
     p.gait.A_p = g.A_p;
     p.gait.omega = g.omega;
     p.admittance.Pi_n = {g.eta};

@@ -306,8 +306,10 @@ const std::vector<KeyRow> kDaemonKeys = {
     {"controller.eta_min", kSimDriver + "controller:\n  eta_max: 0\n  eta_min: @\n", "-2", "x", "1",
      "a number <= controller.eta_max = 0"},
     {"controller.eta_max", kSimDriver + "controller:\n  eta_max: @\n", "2", "x", "7", "a number in [-6.28319, 6.28319] [rad]"},
-    {"controller.gait.A_p", kSimDriver + "controller:\n  gait:\n    A_p: @\n", "0.5", "x", "-4",
-     "a number in [-3.14159, 3.14159] [rad]"},
+    // The controller's amplitude is a magnitude: -0.5 loaded, and the controller refused it
+    // afterwards without a line.
+    {"controller.gait.A_p", kSimDriver + "controller:\n  gait:\n    A_p: @\n", "0.5", "x", "-0.5",
+     "a number in [0, 3.14159] [rad]"},
     {"controller.gait.omega", kSimDriver + "controller:\n  gait:\n    omega: @\n", "pi", "x", "200",
      "a number in [-100, 100] [rad/s]"},
     {"controller.gait.eta", kSimDriver + "controller:\n  gait:\n    eta: @\n", "-2*pi/5", "x", "-7",

@@ -10,6 +10,7 @@
 
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/drivers/bus_budget.hpp"
+#include "pedalwave/drivers/serial_driver.hpp"
 
 namespace pedalwave::config {
 
@@ -160,7 +161,18 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
     // Absolute: a relative one would be opened from wherever the daemon was started.
     if (d.serial.device.empty() || d.serial.device[0] != '/')
       r["device"].fail("an absolute device path (e.g. /dev/ttyUSB0)");
-    d.serial.baud = static_cast<int>(r.integer("baud", 4'000'000, 9600, 4'000'000));
+    // Only the rates the port opens at: 3500000 would load and fail at start.
+    if (r.has("baud")) {
+      const Reader b = r["baud"];
+      const std::string rates = "one of the standard rates " + drivers::serial_bauds_text() + " [bit/s]";
+      if (!b.is_scalar()) b.fail(rates);
+      const double v = b.as_number();
+      if (std::find(drivers::kSerialBauds.begin(), drivers::kSerialBauds.end(), v) == drivers::kSerialBauds.end())
+        b.fail(rates);
+      d.serial.baud = static_cast<int>(v);
+    } else {
+      d.serial.baud = 4'000'000;
+    }
     d.serial.joints = joints;
     d.serial.return_delay_s = r.bounded("return_delay", 20e-6, 0, 0.1, "s");
     d.serial.turnaround_s = r.bounded("turnaround", 0.0, 0, 0.1, "s");

@@ -288,7 +288,10 @@ const std::vector<KeyRow> kDaemonKeys = {
     {"driver.data_bitrate", "rate_hz: 100\ndriver:\n  type: socketcan\n  fd: true\n  data_bitrate: @\n", "2e6", "x",
      "1e8", "a number in (0, 1.2e+07] [bit/s]"},
     {"driver.max_load", "rate_hz: 100\ndriver:\n  type: socketcan\n  max_load: @\n", "0.5", "x", "2", "a number in (0, 1]"},
-    {"driver.baud", "rate_hz: 250\ndriver:\n  type: serial\n  baud: @\n", "1000000", "x", "10", "an integer in [9600, 4000000]"},
+    // 3500000 was in [9600, 4e6] and loaded; opening the port refused it (the driver's kSerialBauds).
+    {"driver.baud", "rate_hz: 250\ndriver:\n  type: serial\n  baud: @\n", "1000000", "x", "3500000",
+     "one of the standard rates 9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 921600, 1000000, "
+     "1500000, 2000000, 3000000, 4000000 [bit/s]"},
     {"driver.return_delay", "rate_hz: 250\ndriver:\n  type: serial\n  return_delay: @\n", "1e-5", "x", "5", "a number in [0, 0.1] [s]"},
     {"driver.device", "rate_hz: 250\ndriver:\n  type: serial\n  device: @\n", "/dev/ttyS1", "[1]", "ttyUSB0",
      "an absolute device path"},

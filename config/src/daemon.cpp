@@ -336,7 +336,10 @@ std::string duration_problem(double duration, double rate_hz) {
     os << "a run time in [0, " << kMaxDuration << "] s (0 = until a signal)";
     return os.str();
   }
-  if (duration > 0 && duration * rate_hz < 0.5) {
+  // At least one period, as the message says (and README.md says of --duration), within float
+  // rounding of it (0.0019 s at 1/0.0019 Hz is 0.9999999999999999 periods); half a period, which
+  // rounded to one cycle, passed.
+  if (duration > 0 && duration * rate_hz < 1.0 - 1e-9) {
     std::ostringstream os;
     os << "0 (until a signal) or at least one control period 1/rate_hz = " << 1.0 / rate_hz << " s";
     return os.str();

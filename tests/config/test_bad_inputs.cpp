@@ -374,6 +374,9 @@ TEST(BadInputs, DaemonContradictionsAreRefused) {
   e = daemon_error("duration: 0.0004\n" + kSimDriver);
   EXPECT_EQ(e, "bad.yaml:1:11: duration = \"0.0004\": expected 0 (until a signal) or at least one control period "
                "1/rate_hz = 0.001 s");
+  e = daemon_error("duration: 0.0007\n" + kSimDriver);
+  EXPECT_EQ(e, "bad.yaml:1:11: duration = \"0.0007\": expected 0 (until a signal) or at least one control period "
+               "1/rate_hz = 0.001 s");
   // The scene's own errors keep the scene's file and line.
   e = daemon_error("driver:\n  type: sim\n  scene: /dev/null\n");
   EXPECT_NE(e.find("driver.scene: /dev/null: is not a regular file"), std::string::npos) << e;
@@ -456,6 +459,13 @@ TEST(BadInputs, DurationProblem) {
   EXPECT_EQ(config::duration_problem(5, 1000), "");
   EXPECT_EQ(config::duration_problem(0.001, 1000), "");
   EXPECT_NE(config::duration_problem(0.0004, 1000), "");
+  // At least one period, as the message says (half a period was accepted: it rounds to 1 cycle),
+  // within float rounding of it.
+  EXPECT_NE(config::duration_problem(0.0007, 1000), "");
+  EXPECT_NE(config::duration_problem(0.0005, 1000), "");
+  EXPECT_NE(config::duration_problem(0.999e-3, 1000), "");
+  EXPECT_EQ(config::duration_problem(1.0 / 3.0, 3), "");
+  EXPECT_EQ(config::duration_problem(0.0019, 1 / 0.0019), "") << "0.0019 · (1 / 0.0019) is 0.9999999999999999";
   EXPECT_NE(config::duration_problem(-1, 1000), "");
   EXPECT_NE(config::duration_problem(std::nan(""), 1000), "");
   EXPECT_NE(config::duration_problem(HUGE_VAL, 1000), "");

@@ -108,9 +108,12 @@ TEST_F(RuntimeCli, BadDurationsExit2WithOneLine) {
     EXPECT_NE(err().find(": expected a run time in [0, 1e+07] s (0 = until a signal)"), std::string::npos) << err();
     EXPECT_EQ(lines(err()), 1) << err();
   }
-  EXPECT_EQ(run(c + "0.0004"), 2);
-  EXPECT_EQ(err(), "pedalwave_runtime: error: --duration 0.0004: expected 0 (until a signal) or at least one "
-                   "control period 1/rate_hz = 0.001 s\n");
+  for (const char* d : {"0.0004", "0.0007"}) {  // the file's rule: at least one period
+    SCOPED_TRACE(d);
+    EXPECT_EQ(run(c + d), 2);
+    EXPECT_EQ(err(), "pedalwave_runtime: error: --duration " + std::string(d) +
+                         ": expected 0 (until a signal) or at least one control period 1/rate_hz = 0.001 s\n");
+  }
 }
 
 TEST_F(RuntimeCli, CommandLineErrorsExit2NotCli11Codes) {

@@ -190,7 +190,9 @@ void read_realtime(const Reader& r, DaemonConfig& c) {
                 "read_budget", "stale_timeout", "overrun_fault_after", "auto_start"});
   runtime::RuntimeConfig& rc = c.runtime;
   rc.rt.priority = static_cast<int>(r.integer("priority", 0, 0, 99));
-  rc.rt.cpu = static_cast<int>(r.integer("cpu", -1, -1, 1023));
+  // The robot's machine's CPU: whether this machine has it is --check's and the start's question
+  // (a packaging machine with 1 CPU loads a robot's cpu: 1).
+  rc.rt.cpu = static_cast<int>(r.integer("cpu", -1, -1, runtime::kMaxCpu));
   rc.rt.lock_memory = r.boolean("lock_memory", false);
   rc.rt.prefault_stack_bytes = static_cast<std::size_t>(r.integer("prefault_stack", 256 * 1024, 0, 4 << 20));
   rc.rt.require_rt = r.boolean("require", false);
@@ -414,7 +416,7 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
   d.rate_hz = rc.rt.rate_hz;
   copy_name(d.name, c.name);
   copy_name(d.driver, to_string(c.driver.kind));
-  checked(r, "realtime", [&] { runtime::validate(rc); });
+  checked(r, "realtime", [&] { runtime::validate(rc, runtime::ValidateScope::kValues); });
   return c;
 }
 

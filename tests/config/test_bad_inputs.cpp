@@ -454,6 +454,17 @@ TEST(BadInputs, DriverKeysOfAnotherTypeAreRefused) {
   EXPECT_EQ(readme, kDriverKeyTypes) << "config/runtime/README.md's driver table, its type column";
 }
 
+// The file is machine-independent: a robot's `cpu: 1` loads on a 1-CPU packaging machine
+// (--check-config), and whether this machine has the CPU is --check's and the start's question.
+TEST(BadInputs, RealtimeCpuIsCheckedWithoutThisMachine) {
+  const long n = sysconf(_SC_NPROCESSORS_ONLN);
+  EXPECT_EQ(daemon_error(kSimDriver + "realtime:\n  cpu: " + std::to_string(n) + "\n"), "(no error)")
+      << "CPU " << n << " does not exist here (" << n << " online CPUs)";
+  EXPECT_EQ(daemon_error(kSimDriver + "realtime:\n  cpu: 1023\n"), "(no error)");
+  EXPECT_EQ(daemon_error(kSimDriver + "realtime:\n  cpu: 1024\n"),
+            "bad.yaml:5:8: realtime.cpu = \"1024\": expected an integer in [-1, 1023]");
+}
+
 TEST(BadInputs, DurationProblem) {
   EXPECT_EQ(config::duration_problem(0, 1000), "");
   EXPECT_EQ(config::duration_problem(5, 1000), "");

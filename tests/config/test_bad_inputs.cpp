@@ -465,6 +465,17 @@ TEST(BadInputs, RealtimeCpuIsCheckedWithoutThisMachine) {
             "bad.yaml:5:8: realtime.cpu = \"1024\": expected an integer in [-1, 1023]");
 }
 
+// As config/runtime/README.md's `telemetry` table says: no section is off, an empty one is on.
+TEST(BadInputs, TelemetryIsOffWithoutTheSectionAndOnWithAnEmptyOne) {
+  auto enabled = [](const std::string& yaml) {
+    return config::parse_daemon_config(yaml, "t.yaml", PEDALWAVE_CONFIG_DIR "/runtime").telemetry.enabled;
+  };
+  EXPECT_FALSE(enabled(kSimDriver));
+  EXPECT_TRUE(enabled(kSimDriver + "telemetry: {}\n"));
+  EXPECT_TRUE(enabled(kSimDriver + "telemetry: {domain_id: 3}\n"));
+  EXPECT_FALSE(enabled(kSimDriver + "telemetry: {enabled: false}\n"));
+}
+
 TEST(BadInputs, DurationProblem) {
   EXPECT_EQ(config::duration_problem(0, 1000), "");
   EXPECT_EQ(config::duration_problem(5, 1000), "");

@@ -10,6 +10,7 @@
 
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/drivers/bus_budget.hpp"
+#include "pedalwave/drivers/serial_driver.hpp"
 
 namespace pedalwave::config {
 
@@ -73,12 +74,35 @@ void read_controller(const Reader& r, DaemonConfig& c) {
   if (r.has("tau_max")) p.limits.tau_max = r.bounded_numbers("tau_max", 0, 1e4, "N·m", true);
   if (r.has("tau_rate_max")) p.limits.tau_rate_max = r.bounded_numbers("tau_rate_max", 0, 1e9, "N·m/s", true);
   if (r.has("gait")) {
-    const model::GaitParams g = read_gait(r["gait"]);
+    // A_p ≥ 0: the controller refuses a negative amplitude, later and without a line.
+    const model::GaitParams g = read_gait(r["gait"], 0.0);
     p.gait.A_p = g.A_p;
     p.gait.omega = g.omega;
     p.admittance.Pi_n = {g.eta};
   }
 }
+
+// Which driver types each key of `driver:` belongs to (README "driver", its type column). A key
+// of another type is refused, not ignored: `{type: sim, baud: 1}` is a file that says two things.
+struct DriverKey {
+  const char* key;
+  const char* owner;  // for the message: "the serial driver's", "the socketcan and serial drivers'"
+  bool sim, socketcan, serial;
+};
+constexpr DriverKey kDriverKeys[] = {
+    {"scene", "the sim driver's", true, false, false},
+    {"clock", "the sim driver's", true, false, false},
+    {"command_timeout", "the sim driver's", true, false, false},
+    {"ifname", "the socketcan driver's", false, true, false},
+    {"fd", "the socketcan driver's", false, true, false},
+    {"bitrate", "the socketcan driver's", false, true, false},
+    {"data_bitrate", "the socketcan driver's", false, true, false},
+    {"max_load", "the socketcan and serial drivers'", false, true, true},
+    {"device", "the serial driver's", false, false, true},
+    {"baud", "the serial driver's", false, false, true},
+    {"return_delay", "the serial driver's", false, false, true},
+    {"turnaround", "the serial driver's", false, false, true},
+};
 
 void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) {
   r.allow_only({"type", "scene", "clock", "command_timeout", "ifname", "fd", "bitrate",
@@ -88,6 +112,14 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
   d.kind = type == "socketcan" ? DriverKind::kSocketCan
            : type == "serial"  ? DriverKind::kSerial
                                : DriverKind::kSim;
+  for (const DriverKey& k : kDriverKeys) {
+    const bool applies = d.kind == DriverKind::kSim         ? k.sim
+                         : d.kind == DriverKind::kSocketCan ? k.socketcan
+                                                            : k.serial;
+    if (!applies && r.has(k.key))
+      r[k.key].fail(std::string("no ") + k.key + " with type: " + type + " (" + k.key + " is " + k.owner +
+                    (r.has("type") ? "" : "; type: sim is the default") + ")");
+  }
   const double period = 1.0 / c.runtime.rt.rate_hz;
   const int joints = c.robot.N - 1;
   if (d.kind == DriverKind::kSim) {
@@ -129,7 +161,18 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
     // Absolute: a relative one would be opened from wherever the daemon was started.
     if (d.serial.device.empty() || d.serial.device[0] != '/')
       r["device"].fail("an absolute device path (e.g. /dev/ttyUSB0)");
-    d.serial.baud = static_cast<int>(r.integer("baud", 4'000'000, 9600, 4'000'000));
+    // Only the rates the port opens at: 3500000 would load and fail at start.
+    if (r.has("baud")) {
+      const Reader b = r["baud"];
+      const std::string rates = "one of the standard rates " + drivers::serial_bauds_text() + " [bit/s]";
+      if (!b.is_scalar()) b.fail(rates);
+      const double v = b.as_number();
+      if (std::find(drivers::kSerialBauds.begin(), drivers::kSerialBauds.end(), v) == drivers::kSerialBauds.end())
+        b.fail(rates);
+      d.serial.baud = static_cast<int>(v);
+    } else {
+      d.serial.baud = 4'000'000;
+    }
     d.serial.joints = joints;
     d.serial.return_delay_s = r.bounded("return_delay", 20e-6, 0, 0.1, "s");
     d.serial.turnaround_s = r.bounded("turnaround", 0.0, 0, 0.1, "s");
@@ -147,7 +190,9 @@ void read_realtime(const Reader& r, DaemonConfig& c) {
                 "read_budget", "stale_timeout", "overrun_fault_after", "auto_start"});
   runtime::RuntimeConfig& rc = c.runtime;
   rc.rt.priority = static_cast<int>(r.integer("priority", 0, 0, 99));
-  rc.rt.cpu = static_cast<int>(r.integer("cpu", -1, -1, 1023));
+  // The robot's machine's CPU: whether this machine has it is --check's and the start's question
+  // (a packaging machine with 1 CPU loads a robot's cpu: 1).
+  rc.rt.cpu = static_cast<int>(r.integer("cpu", -1, -1, runtime::kMaxCpu));
   rc.rt.lock_memory = r.boolean("lock_memory", false);
   rc.rt.prefault_stack_bytes = static_cast<std::size_t>(r.integer("prefault_stack", 256 * 1024, 0, 4 << 20));
   rc.rt.require_rt = r.boolean("require", false);
@@ -293,7 +338,10 @@ std::string duration_problem(double duration, double rate_hz) {
     os << "a run time in [0, " << kMaxDuration << "] s (0 = until a signal)";
     return os.str();
   }
-  if (duration > 0 && duration * rate_hz < 0.5) {
+  // At least one period, as the message says (and README.md says of --duration), within float
+  // rounding of it (0.0019 s at 1/0.0019 Hz is 0.9999999999999999 periods); half a period, which
+  // rounded to one cycle, passed.
+  if (duration > 0 && duration * rate_hz < 1.0 - 1e-9) {
     std::ostringstream os;
     os << "0 (until a signal) or at least one control period 1/rate_hz = " << 1.0 / rate_hz << " s";
     return os.str();
@@ -368,7 +416,7 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
   d.rate_hz = rc.rt.rate_hz;
   copy_name(d.name, c.name);
   copy_name(d.driver, to_string(c.driver.kind));
-  checked(r, "realtime", [&] { runtime::validate(rc); });
+  checked(r, "realtime", [&] { runtime::validate(rc, runtime::ValidateScope::kValues); });
   return c;
 }
 

@@ -70,10 +70,10 @@ IntegratorOptions read_integrator(const Reader& r) {
   return o;
 }
 
-GaitParams read_gait(const Reader& r) {
+GaitParams read_gait(const Reader& r, double A_p_min) {
   r.allow_only({"A_p", "omega", "eta"});
   GaitParams g;
-  g.A_p = r.bounded("A_p", g.A_p, -M_PI, M_PI, "rad");
+  g.A_p = r.bounded("A_p", g.A_p, A_p_min, M_PI, "rad");
   g.omega = r.bounded("omega", g.omega, -100, 100, "rad/s");
   g.eta = r.bounded("eta", g.eta, -2 * M_PI, 2 * M_PI, "rad");
   return g;

@@ -168,6 +168,20 @@ TEST(Daemon, AnUnwritableReportPathIsRefusedBeforeTheRun) {
   }
 }
 
+// The file may name a CPU of the robot's machine (config/runtime/README.md, realtime.cpu); a run
+// on a machine without it is refused before anything starts (BadInput: exit 2).
+TEST(Daemon, ACpuThisMachineDoesNotHaveIsRefusedBeforeTheRun) {
+  config::DaemonConfig c = lockstep(1.0);
+  c.runtime.rt.cpu = 1023;
+  try {
+    app::run_daemon(c, {.plots_dir = "", .telemetry = false, .print = false});
+    FAIL() << "expected a refusal";
+  } catch (const app::BadInput& e) {
+    EXPECT_NE(std::string(e.what()).find("realtime.cpu = 1023: expected -1 (no pinning) or a CPU of this machine"),
+              std::string::npos) << e.what();
+  }
+}
+
 TEST(Daemon, APlotsFolderThatCannotBeCreatedIsRefusedBeforeTheRun) {
   try {
     app::run_daemon(lockstep(1.0), {.plots_dir = "/proc/pedalwave-no/plots", .telemetry = false,

@@ -288,7 +288,10 @@ const std::vector<KeyRow> kDaemonKeys = {
     {"driver.data_bitrate", "rate_hz: 100\ndriver:\n  type: socketcan\n  fd: true\n  data_bitrate: @\n", "2e6", "x",
      "1e8", "a number in (0, 1.2e+07] [bit/s]"},
     {"driver.max_load", "rate_hz: 100\ndriver:\n  type: socketcan\n  max_load: @\n", "0.5", "x", "2", "a number in (0, 1]"},
-    {"driver.baud", "rate_hz: 250\ndriver:\n  type: serial\n  baud: @\n", "1000000", "x", "10", "an integer in [9600, 4000000]"},
+    // 3500000 was in [9600, 4e6] and loaded; opening the port refused it (the driver's kSerialBauds).
+    {"driver.baud", "rate_hz: 250\ndriver:\n  type: serial\n  baud: @\n", "1000000", "x", "3500000",
+     "one of the standard rates 9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 921600, 1000000, "
+     "1500000, 2000000, 3000000, 4000000 [bit/s]"},
     {"driver.return_delay", "rate_hz: 250\ndriver:\n  type: serial\n  return_delay: @\n", "1e-5", "x", "5", "a number in [0, 0.1] [s]"},
     {"driver.device", "rate_hz: 250\ndriver:\n  type: serial\n  device: @\n", "/dev/ttyS1", "[1]", "ttyUSB0",
      "an absolute device path"},
@@ -306,8 +309,10 @@ const std::vector<KeyRow> kDaemonKeys = {
     {"controller.eta_min", kSimDriver + "controller:\n  eta_max: 0\n  eta_min: @\n", "-2", "x", "1",
      "a number <= controller.eta_max = 0"},
     {"controller.eta_max", kSimDriver + "controller:\n  eta_max: @\n", "2", "x", "7", "a number in [-6.28319, 6.28319] [rad]"},
-    {"controller.gait.A_p", kSimDriver + "controller:\n  gait:\n    A_p: @\n", "0.5", "x", "-4",
-     "a number in [-3.14159, 3.14159] [rad]"},
+    // The controller's amplitude is a magnitude: -0.5 loaded, and the controller refused it
+    // afterwards without a line.
+    {"controller.gait.A_p", kSimDriver + "controller:\n  gait:\n    A_p: @\n", "0.5", "x", "-0.5",
+     "a number in [0, 3.14159] [rad]"},
     {"controller.gait.omega", kSimDriver + "controller:\n  gait:\n    omega: @\n", "pi", "x", "200",
      "a number in [-100, 100] [rad/s]"},
     {"controller.gait.eta", kSimDriver + "controller:\n  gait:\n    eta: @\n", "-2*pi/5", "x", "-7",
@@ -369,9 +374,106 @@ TEST(BadInputs, DaemonContradictionsAreRefused) {
   e = daemon_error("duration: 0.0004\n" + kSimDriver);
   EXPECT_EQ(e, "bad.yaml:1:11: duration = \"0.0004\": expected 0 (until a signal) or at least one control period "
                "1/rate_hz = 0.001 s");
+  e = daemon_error("duration: 0.0007\n" + kSimDriver);
+  EXPECT_EQ(e, "bad.yaml:1:11: duration = \"0.0007\": expected 0 (until a signal) or at least one control period "
+               "1/rate_hz = 0.001 s");
   // The scene's own errors keep the scene's file and line.
   e = daemon_error("driver:\n  type: sim\n  scene: /dev/null\n");
   EXPECT_NE(e.find("driver.scene: /dev/null: is not a regular file"), std::string::npos) << e;
+}
+
+// A driver key belongs to its types (README "driver", the type column); beside another type it is
+// refused at its line, naming the key and the type, not ignored unchecked ({type: sim, ifname: a/b,
+// baud: 1, device: rel} loaded). Every driver row's key is here, and the README's column says the
+// same.
+namespace {
+const std::map<std::string, std::set<std::string>> kDriverKeyTypes = {
+    {"scene", {"sim"}},          {"clock", {"sim"}},         {"command_timeout", {"sim"}},
+    {"ifname", {"socketcan"}},   {"fd", {"socketcan"}},      {"bitrate", {"socketcan"}},
+    {"data_bitrate", {"socketcan"}}, {"max_load", {"socketcan", "serial"}},
+    {"device", {"serial"}},      {"baud", {"serial"}},       {"return_delay", {"serial"}},
+    {"turnaround", {"serial"}},
+};
+}  // namespace
+
+TEST(BadInputs, DriverKeysOfAnotherTypeAreRefused) {
+  const std::map<std::string, std::string> base = {
+      {"sim", "driver:\n  type: sim\n  scene: ../scenes/flat_high_friction.yaml\n"},
+      {"socketcan", "rate_hz: 100\ndriver:\n  type: socketcan\n"},
+      {"serial", "rate_hz: 250\ndriver:\n  type: serial\n"},
+  };
+  std::set<std::string> rows;
+  for (const KeyRow& k : kDaemonKeys) {
+    if (k.path.rfind("driver.", 0) != 0 || k.path == "driver.type") continue;
+    const std::string key = k.path.substr(7);
+    rows.insert(key);
+    ASSERT_TRUE(kDriverKeyTypes.count(key)) << key << ": which driver types is it for?";
+    const std::set<std::string>& types = kDriverKeyTypes.at(key);
+    std::string owner;
+    for (const char* t : {"sim", "socketcan", "serial"})  // the order of `type`'s choices
+      if (types.count(t)) owner += (owner.empty() ? "" : " and ") + std::string(t);
+    owner += types.size() > 1 ? " drivers'" : " driver's";
+    for (const auto& [type, yaml] : base) {
+      if (types.count(type) || key == "scene") continue;  // a sim base gives its scene already
+      SCOPED_TRACE(key + " with type: " + type);
+      const std::string e = daemon_error(yaml + "  " + key + ": " + k.good + "\n");
+      EXPECT_EQ(e, "bad.yaml:4:" + std::to_string(5 + key.size()) + ": " + k.path + " = " + shown(k.good) +
+                       ": expected no " + key + " with type: " + type + " (" + key + " is the " + owner + ")");
+    }
+    if (!types.count("socketcan") && !types.count("serial")) continue;
+    // The default type is sim: said so.
+    const std::string e = daemon_error("driver:\n  scene: ../scenes/flat_high_friction.yaml\n  " + key + ": " +
+                                       k.good + "\n");
+    EXPECT_NE(e.find("expected no " + key + " with type: sim (" + key + " is the " + owner +
+                     "; type: sim is the default)"), std::string::npos) << e;
+  }
+  std::set<std::string> table;
+  for (const auto& [key, types] : kDriverKeyTypes) table.insert(key);
+  EXPECT_EQ(table, rows) << "the driver keys here and the driver rows";
+  // The audit's file, and a key of the right type with a value of the wrong type still says so.
+  std::string e = daemon_error("driver: {type: sim, scene: ../scenes/flat_high_friction.yaml, ifname: 'a/b', "
+                               "baud: 1, device: rel}\n");
+  EXPECT_NE(e.find("driver.ifname = \"a/b\": expected no ifname with type: sim (ifname is the socketcan "
+                   "driver's)"), std::string::npos) << e;
+  e = daemon_error("rate_hz: 250\ndriver: {type: serial, fd: maybe}\n");
+  EXPECT_EQ(e, "bad.yaml:2:28: driver.fd = \"maybe\": expected no fd with type: serial (fd is the socketcan "
+               "driver's)");
+  // The README's driver table says the same in its type column.
+  std::ifstream in(PEDALWAVE_CONFIG_DIR "/runtime/README.md");
+  ASSERT_TRUE(in);
+  bool in_driver = false;
+  std::map<std::string, std::set<std::string>> readme;
+  const std::regex row("^\\| `([a-z_]+)` \\| ([a-z, ]+) \\|.*");
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind('#', 0) == 0) in_driver = line == "## `driver`";
+    std::smatch m;
+    if (!in_driver || !std::regex_match(line, m, row) || m[1] == "type") continue;
+    std::stringstream list(m[2].str());
+    for (std::string t; std::getline(list, t, ',');) readme[m[1]].insert(t.substr(t.find_first_not_of(' ')));
+  }
+  EXPECT_EQ(readme, kDriverKeyTypes) << "config/runtime/README.md's driver table, its type column";
+}
+
+// The file is machine-independent: a robot's `cpu: 1` loads on a 1-CPU packaging machine
+// (--check-config), and whether this machine has the CPU is --check's and the start's question.
+TEST(BadInputs, RealtimeCpuIsCheckedWithoutThisMachine) {
+  const long n = sysconf(_SC_NPROCESSORS_ONLN);
+  EXPECT_EQ(daemon_error(kSimDriver + "realtime:\n  cpu: " + std::to_string(n) + "\n"), "(no error)")
+      << "CPU " << n << " does not exist here (" << n << " online CPUs)";
+  EXPECT_EQ(daemon_error(kSimDriver + "realtime:\n  cpu: 1023\n"), "(no error)");
+  EXPECT_EQ(daemon_error(kSimDriver + "realtime:\n  cpu: 1024\n"),
+            "bad.yaml:5:8: realtime.cpu = \"1024\": expected an integer in [-1, 1023]");
+}
+
+// As config/runtime/README.md's `telemetry` table says: no section is off, an empty one is on.
+TEST(BadInputs, TelemetryIsOffWithoutTheSectionAndOnWithAnEmptyOne) {
+  auto enabled = [](const std::string& yaml) {
+    return config::parse_daemon_config(yaml, "t.yaml", PEDALWAVE_CONFIG_DIR "/runtime").telemetry.enabled;
+  };
+  EXPECT_FALSE(enabled(kSimDriver));
+  EXPECT_TRUE(enabled(kSimDriver + "telemetry: {}\n"));
+  EXPECT_TRUE(enabled(kSimDriver + "telemetry: {domain_id: 3}\n"));
+  EXPECT_FALSE(enabled(kSimDriver + "telemetry: {enabled: false}\n"));
 }
 
 TEST(BadInputs, DurationProblem) {
@@ -379,6 +481,13 @@ TEST(BadInputs, DurationProblem) {
   EXPECT_EQ(config::duration_problem(5, 1000), "");
   EXPECT_EQ(config::duration_problem(0.001, 1000), "");
   EXPECT_NE(config::duration_problem(0.0004, 1000), "");
+  // At least one period, as the message says (half a period was accepted: it rounds to 1 cycle),
+  // within float rounding of it.
+  EXPECT_NE(config::duration_problem(0.0007, 1000), "");
+  EXPECT_NE(config::duration_problem(0.0005, 1000), "");
+  EXPECT_NE(config::duration_problem(0.999e-3, 1000), "");
+  EXPECT_EQ(config::duration_problem(1.0 / 3.0, 3), "");
+  EXPECT_EQ(config::duration_problem(0.0019, 1 / 0.0019), "") << "0.0019 · (1 / 0.0019) is 0.9999999999999999";
   EXPECT_NE(config::duration_problem(-1, 1000), "");
   EXPECT_NE(config::duration_problem(std::nan(""), 1000), "");
   EXPECT_NE(config::duration_problem(HUGE_VAL, 1000), "");

@@ -80,6 +80,15 @@ TEST(RtConfig, ValidationNamesItemValueAndRange) {
   EXPECT_TRUE(validation_error(c).empty());
   c.cpu = -2;
   EXPECT_FALSE(validation_error(c).empty());
+  // The values alone (a configuration read on another machine than the robot's): any CPU index.
+  using pedalwave::runtime::ValidateScope;
+  c.cpu = static_cast<int>(n);
+  EXPECT_NO_THROW(pedalwave::runtime::validate(c, ValidateScope::kValues));
+  EXPECT_NE(pedalwave::runtime::cpu_problem(c.cpu), "");
+  EXPECT_EQ(pedalwave::runtime::cpu_problem(-1), "");
+  EXPECT_EQ(pedalwave::runtime::cpu_problem(0), "");
+  c.cpu = pedalwave::runtime::kMaxCpu + 1;
+  EXPECT_THROW(pedalwave::runtime::validate(c, ValidateScope::kValues), std::invalid_argument);
 
   c = RtConfig{};
   c.prefault_stack_bytes = pedalwave::runtime::kMaxPrefaultStack + 1;

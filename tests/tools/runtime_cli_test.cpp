@@ -108,9 +108,12 @@ TEST_F(RuntimeCli, BadDurationsExit2WithOneLine) {
     EXPECT_NE(err().find(": expected a run time in [0, 1e+07] s (0 = until a signal)"), std::string::npos) << err();
     EXPECT_EQ(lines(err()), 1) << err();
   }
-  EXPECT_EQ(run(c + "0.0004"), 2);
-  EXPECT_EQ(err(), "pedalwave_runtime: error: --duration 0.0004: expected 0 (until a signal) or at least one "
-                   "control period 1/rate_hz = 0.001 s\n");
+  for (const char* d : {"0.0004", "0.0007"}) {  // the file's rule: at least one period
+    SCOPED_TRACE(d);
+    EXPECT_EQ(run(c + d), 2);
+    EXPECT_EQ(err(), "pedalwave_runtime: error: --duration " + std::string(d) +
+                         ": expected 0 (until a signal) or at least one control period 1/rate_hz = 0.001 s\n");
+  }
 }
 
 TEST_F(RuntimeCli, CommandLineErrorsExit2NotCli11Codes) {
@@ -167,6 +170,33 @@ TEST_F(RuntimeCli, CheckLooksAtDevicesInterfacesAndFolders) {
 }
 
 // Without --check too, an unwritable plots folder is refused before the run, not after it.
+// realtime.cpu is the robot's: the file alone passes on any machine (--check-config on a packaging
+// machine), --check says whether this machine has the CPU, and a run refuses to start without it
+// (exit 2, before the driver opens), never pinning the loop nowhere.
+TEST_F(RuntimeCli, ACpuThisMachineDoesNotHaveIsCheckedHereNotInTheFile) {
+  const long n = ::sysconf(_SC_NPROCESSORS_ONLN);
+  const std::string flat = (fs::path(PEDALWAVE_CONFIG_DIR) / "scenes" / "flat_high_friction.yaml").string();
+  const std::string far = sim_config("far.yaml", flat, "duration: 1\n");
+  std::string text = slurp(far);
+  text.replace(text.find("realtime: {"), 11, "realtime: {cpu: 1023, ");
+  std::ofstream(far) << text;
+  EXPECT_EQ(run("-c '" + far + "' --check-config"), 0) << err();
+  EXPECT_EQ(run("-c '" + far + "' --check"), 2) << out();
+  EXPECT_NE(out().find("FAIL  CPU 1023 exists (this machine has " + std::to_string(n) + " online CPUs): "),
+            std::string::npos) << out();
+  EXPECT_EQ(run("-c '" + far + "'"), 2) << out();
+  EXPECT_EQ(err(), "pedalwave_runtime: error: " + far + ": realtime.cpu = 1023: expected -1 (no pinning) or a CPU of "
+                   "this machine, 0 … " + std::to_string(n - 1) + " (it has " + std::to_string(n) +
+                   " online CPUs)\n");
+  const std::string here = sim_config("here.yaml", flat, "duration: 0.01\n");
+  text = slurp(here);
+  text.replace(text.find("realtime: {"), 11, "realtime: {cpu: 0, ");
+  std::ofstream(here) << text;
+  EXPECT_EQ(run("-c '" + here + "' --check"), 0) << out() << err();
+  EXPECT_NE(out().find("ok    CPU 0 exists (this machine has " + std::to_string(n) + " online CPUs)"),
+            std::string::npos) << out();
+}
+
 TEST_F(RuntimeCli, UnwritablePlotsFolderFailsAtStart) {
   const auto t0 = std::chrono::steady_clock::now();
   EXPECT_EQ(run("-c '" + kConfigs + "sim_lockstep.yaml' --no-telemetry --duration 60 --plots /proc/forbidden"), 2);

@@ -387,6 +387,12 @@ std::vector<CheckItem> preflight(const config::DaemonConfig& cfg, const DaemonOp
     const std::string what = "CAN interface " + d.can.ifname + " exists";
     add(::if_nametoindex(d.can.ifname.c_str()) != 0, what, "no such network interface");
   }
+  if (const int cpu = cfg.runtime.rt.cpu; cpu >= 0) {  // the file is the robot's: is its CPU here?
+    const int n = runtime::online_cpus();
+    add(runtime::cpu_problem(cpu).empty(),
+        "CPU " + std::to_string(cpu) + " exists (this machine has " + std::to_string(n) + " online CPUs)",
+        "no such CPU (realtime.cpu: 0 … " + std::to_string(n - 1) + ", or -1 for no pinning)");
+  }
   if (cfg.telemetry.enabled && opt.telemetry)
     add(::if_nametoindex(cfg.telemetry.interface.c_str()) != 0,
         "DDS network interface " + cfg.telemetry.interface + " exists", "no such network interface");
@@ -417,6 +423,11 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   std::ostream& out = opt.print ? std::cout : log;
 
   if (const std::string why = config_problem(cfg); !why.empty()) throw BadInput(why);
+  // The file names the robot's CPU (it loads on any machine): this one must have it, or nothing
+  // starts — not the driver either.
+  if (const std::string why = runtime::cpu_problem(cfg.runtime.rt.cpu); !why.empty())
+    throw BadInput((cfg.source.empty() ? cfg.name : cfg.source) + ": realtime.cpu = " +
+                   std::to_string(cfg.runtime.rt.cpu) + ": expected " + why);
   // The events log is opened by the telemetry consumer once the driver is up: a log_file that
   // cannot be written is refused now, before anything starts, not by the logger later.
   if (!cfg.log_file.empty())

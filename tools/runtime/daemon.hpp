@@ -107,12 +107,13 @@ struct CheckItem {
   std::string why;   // the reason when !ok
 };
 // The configured device node exists and opens (serial), the CAN interface exists (socketcan), the
-// DDS network interface exists (telemetry on and `telemetry` true), and the output folders and
-// files of `opt` are writable (plots, report, state). Opens nothing that commands the robot.
+// CPU to pin the loop to exists (realtime.cpu ≥ 0), the DDS network interface exists (telemetry
+// on and `telemetry` true), and the output folders and files of `opt` are writable (plots,
+// report, state). Opens nothing that commands the robot.
 std::vector<CheckItem> preflight(const config::DaemonConfig& cfg, const DaemonOptions& opt);
 
 // Throws BadInput (before the run) for an unusable report path, plots folder, state folder or
-// log_file, and for a config_problem.
+// log_file, a realtime.cpu this machine does not have, and for a config_problem.
 DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& opt);
 
 // The onboard observer as the daemon wires it: the configured robot (one stiffness per joint),

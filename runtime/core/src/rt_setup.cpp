@@ -40,7 +40,19 @@ __attribute__((noinline)) void prefault_stack(std::size_t bytes) {
 
 }  // namespace
 
-void validate(const RtConfig& cfg) {
+int online_cpus() {
+  const long n = sysconf(_SC_NPROCESSORS_ONLN);
+  return n > 0 ? static_cast<int>(n) : 0;
+}
+
+std::string cpu_problem(int cpu) {
+  const int n = online_cpus();
+  if (cpu < 0 || n == 0 || cpu < n) return "";
+  return "-1 (no pinning) or a CPU of this machine, 0 … " + std::to_string(n - 1) + " (it has " +
+         std::to_string(n) + " online CPUs)";
+}
+
+void validate(const RtConfig& cfg, ValidateScope scope) {
   auto fail = [](const std::string& item, const std::string& value, const std::string& expected) {
     throw std::invalid_argument("rt config: " + item + " = " + value + ", expected " + expected);
   };
@@ -52,12 +64,10 @@ void validate(const RtConfig& cfg) {
   if (cfg.priority < 0 || cfg.priority > 99) {
     fail("priority", std::to_string(cfg.priority), "0 (no SCHED_FIFO) or a SCHED_FIFO priority 1..99");
   }
-  const long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
-  if (cfg.cpu < -1 || (ncpu > 0 && cfg.cpu >= ncpu)) {
-    fail("cpu", std::to_string(cfg.cpu),
-         "-1 (no pinning) or a CPU index 0.." + std::to_string(ncpu - 1) + " (this machine has " +
-             std::to_string(ncpu) + " online CPUs)");
-  }
+  if (cfg.cpu < -1 || cfg.cpu > kMaxCpu)
+    fail("cpu", std::to_string(cfg.cpu), "-1 (no pinning) or a CPU index 0.." + std::to_string(kMaxCpu));
+  if (scope == ValidateScope::kThisMachine)
+    if (const std::string why = cpu_problem(cfg.cpu); !why.empty()) fail("cpu", std::to_string(cfg.cpu), why);
   if (cfg.prefault_stack_bytes > kMaxPrefaultStack) {
     fail("prefault_stack_bytes", std::to_string(cfg.prefault_stack_bytes),
          "at most " + std::to_string(kMaxPrefaultStack) + " bytes (4 MiB)");

@@ -94,8 +94,8 @@ const char* to_string(ExitReason r) noexcept {
   return "?";
 }
 
-void validate(const RuntimeConfig& cfg) {
-  validate(cfg.rt);
+void validate(const RuntimeConfig& cfg, ValidateScope scope) {
+  validate(cfg.rt, scope);
   auto fail = [](const std::string& item, double value, const std::string& expected) {
     std::ostringstream os;
     os << "runtime config: " << item << " = " << value << ", expected " << expected;

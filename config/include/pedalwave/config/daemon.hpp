@@ -65,8 +65,8 @@ struct DaemonConfig {
 inline constexpr double kMaxDuration = 1e7;  // longest run a file or --duration may ask for [s]
 
 // Why `duration` [s] is no run time at `rate_hz`, as the "expected …" of a message ("" = fine):
-// finite, in [0, kMaxDuration], and 0 (until a signal) or at least one period (less would round to
-// 0 cycles, which means "forever").
+// finite, in [0, kMaxDuration], and 0 (until a signal) or at least one period (within 1e-9 of a
+// period for float rounding; less is no whole cycle, and 0 cycles would mean "forever").
 std::string duration_problem(double duration, double rate_hz);
 
 DaemonConfig load_daemon_config(const std::string& path);

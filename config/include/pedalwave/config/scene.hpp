@@ -3,6 +3,7 @@
 // without `ground:` has none, e.g. free fall). Errors name file, line, key, value and expectation.
 #pragma once
 
+#include <numbers>
 #include <string>
 
 #include "pedalwave/config/yaml_reader.hpp"
@@ -25,6 +26,8 @@ model::Scene read_scene(const Reader& r);
 // Pieces shared with other configuration files.
 model::Params read_robot(const Reader& r);                  // the `robot:` map
 model::IntegratorOptions read_integrator(const Reader& r);  // the `integrator:` map
-model::GaitParams read_gait(const Reader& r);               // the `gait:` map
+// The `gait:` map; A_p in [A_p_min, π]: a scene's amplitude may be negative (a phase shift of
+// half a period), the controller's is a magnitude (controller.gait.A_p: A_p_min = 0).
+model::GaitParams read_gait(const Reader& r, double A_p_min = -std::numbers::pi);
 
 }  // namespace pedalwave::config

@@ -48,8 +48,17 @@ struct SerialConfig {
   std::int64_t write_timeout_ns = 200'000;  // longest write() waits for a full output queue [ns]
 };
 
+// The baud rates a port opens at (termios' standard rates) [bit/s]: open_serial_port refuses any
+// other, and so does the daemon configuration's driver.baud, at its line.
+inline constexpr std::array<int, 14> kSerialBauds = {9600,    19200,   38400,   57600,   115200,
+                                                     230400,  460800,  500000,  921600,  1000000,
+                                                     1500000, 2000000, 3000000, 4000000};
+// kSerialBauds for messages: "9600, 19200, …, 4000000".
+std::string serial_bauds_text();
+
 // Opens `path` as a raw 8N1 tty at `baud` (non-blocking, no flow control, VMIN = VTIME = 0).
-// Throws std::system_error / std::invalid_argument (unsupported baud rate) naming path and value.
+// Throws std::system_error / std::invalid_argument (a baud rate not in kSerialBauds) naming path
+// and value.
 int open_serial_port(const std::string& path, int baud);
 
 class SerialDriver final : public Driver {

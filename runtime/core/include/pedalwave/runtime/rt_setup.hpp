@@ -20,11 +20,24 @@ struct RtConfig {
 
 inline constexpr double kMaxRateHz = 20000.0;                   // [Hz]
 inline constexpr std::size_t kMaxPrefaultStack = 4u << 20;      // 4 MiB [B]
+inline constexpr int kMaxCpu = 1023;                            // CPU_SETSIZE - 1 [-]
+
+// What validate() checks: the values alone (kValues: a configuration read on a machine that need
+// not be the robot's, e.g. pedalwave_runtime --check-config on a packaging machine), or also this
+// machine (kThisMachine: the CPU to pin to is online here; apply_rt, Runtime).
+enum class ValidateScope { kValues, kThisMachine };
 
 // Throws std::invalid_argument naming the item, the value and the expected range:
-//   rate_hz ∈ (0, 20000], priority ∈ [0, 99], cpu ∈ [-1, nproc-1],
-//   prefault_stack_bytes ≤ 4 MiB.
-void validate(const RtConfig& cfg);
+//   rate_hz ∈ (0, 20000], priority ∈ [0, 99], cpu ∈ [-1, kMaxCpu] and (kThisMachine) one of this
+//   machine's online CPUs (cpu_problem), prefault_stack_bytes ≤ 4 MiB.
+void validate(const RtConfig& cfg, ValidateScope scope = ValidateScope::kThisMachine);
+
+// This machine's online CPUs (sysconf(_SC_NPROCESSORS_ONLN); 0 when unknown).
+int online_cpus();
+// Why the loop cannot be pinned to `cpu` on this machine, as the "expected …" of a message
+// ("" = it can, or cpu = -1, or the CPU count is unknown):
+//   "-1 (no pinning) or a CPU of this machine, 0 … 1 (it has 2 online CPUs)".
+std::string cpu_problem(int cpu);
 
 // What apply_rt() asked for and what the kernel granted.
 struct RtReport {

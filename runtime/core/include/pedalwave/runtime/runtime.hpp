@@ -62,8 +62,9 @@ struct RuntimeConfig {
   RobotDescription description;           // published once; spring_stiffness gives tau_sea
 };
 
-// Throws std::invalid_argument naming the item, the value and the expected range.
-void validate(const RuntimeConfig& cfg);
+// Throws std::invalid_argument naming the item, the value and the expected range; `scope` as
+// validate(RtConfig) (kValues: nothing of this machine, e.g. its CPU count, is asked).
+void validate(const RuntimeConfig& cfg, ValidateScope scope = ValidateScope::kThisMachine);
 
 enum class ExitReason : std::uint8_t {
   kNone = 0,

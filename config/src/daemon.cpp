@@ -150,6 +150,8 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
     d.can.fd = r.boolean("fd", false);
     d.can.bitrate = r.bounded("bitrate", 1e6, 0, 1e6, "bit/s", true);
     d.can.data_bitrate = r.bounded("data_bitrate", 5e6, 0, 1.2e7, "bit/s", true);
+    if (!d.can.fd && r.has("data_bitrate"))  // only an FD bus has a data phase: not ignored
+      r["data_bitrate"].fail("no data_bitrate without fd: true (the data phase is CAN FD's)");
     d.can.max_load = r.bounded("max_load", 0.8, 0, 1, "-", true);
     d.can.period_s = period;
     checked(r, "driver", [&] {
@@ -384,6 +386,15 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
     p.actuator.K.push_back(c.robot.joints == model::JointModel::kFlexible ? c.robot.stiffness(j) : 1e6);
   p.actuator.reflected_inertia = {std::max(c.robot.n * c.robot.n * c.robot.I_r, 1e-12)};
   if (c.driver.kind == DriverKind::kSim) {
+    // The scene's gait drives the runtime's unless the controller gives its own (a
+    // controller.gait map replaces it whole). The controller takes amplitudes ≥ 0, the model any
+    // sign: a negative one is refused here at the scene's own line (it was the controller's
+    // error, naming no line and the wrong file).
+    const bool own_gait = r.has("controller") && r["controller"].has("gait");
+    if (!own_gait && c.driver.scene.gait.A_p < 0)
+      Reader::load_file(c.driver.scene_path)["gait"]["A_p"].fail(
+          "a number in [0, 3.14159] [rad]: this scene's gait drives the runtime's controller, which "
+          "takes amplitudes >= 0 (or give controller.gait in " + (c.source.empty() ? c.name : c.source) + ")");
     p.gait.A_p = c.driver.scene.gait.A_p;
     p.gait.omega = c.driver.scene.gait.omega;
     p.admittance.Pi_n = {c.driver.scene.gait.eta};

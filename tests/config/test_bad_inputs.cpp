@@ -13,9 +13,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <cctype>
 #include <map>
 #include <optional>
-#include <regex>
 #include <set>
 #include <sstream>
 #include <string>
@@ -377,6 +377,21 @@ TEST(BadInputs, DaemonContradictionsAreRefused) {
   e = daemon_error("duration: 0.0007\n" + kSimDriver);
   EXPECT_EQ(e, "bad.yaml:1:11: duration = \"0.0007\": expected 0 (until a signal) or at least one control period "
                "1/rate_hz = 0.001 s");
+  // A scene whose gait drives the controller has an amplitude ≥ 0 (the model takes any sign):
+  // refused at the scene's own line, unless the daemon gives its own controller.gait.
+  const auto dir = std::filesystem::temp_directory_path() / ("pw_neg_gait_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string neg = (dir / "neg.yaml").string();
+  std::ofstream(neg) << "ground: {k: 350}\ngait: {A_p: -0.5}\n";
+  e = daemon_error("driver:\n  type: sim\n  scene: " + neg + "\n");
+  EXPECT_EQ(e.rfind(neg + ":2:13: gait.A_p = \"-0.5\": expected a number in [0, 3.14159] [rad]: this scene's gait "
+                    "drives the runtime's controller", 0), 0u) << e;
+  EXPECT_EQ(daemon_error("driver:\n  type: sim\n  scene: " + neg + "\ncontroller:\n  gait: {A_p: 0.5}\n"),
+            "(no error)") << "the daemon's own gait replaces the scene's";
+  std::filesystem::remove_all(dir);
+  // A data-phase bit rate belongs to CAN FD: beside fd: false it is refused, not ignored.
+  e = daemon_error("driver:\n  type: socketcan\n  data_bitrate: 2e6\n");
+  EXPECT_EQ(e.rfind("bad.yaml:3:17: driver.data_bitrate = \"2e6\": expected no data_bitrate without fd: true", 0), 0u) << e;
   // The scene's own errors keep the scene's file and line.
   e = daemon_error("driver:\n  type: sim\n  scene: /dev/null\n");
   EXPECT_NE(e.find("driver.scene: /dev/null: is not a regular file"), std::string::npos) << e;
@@ -386,6 +401,33 @@ TEST(BadInputs, DaemonContradictionsAreRefused) {
 // refused at its line, naming the key and the type, not ignored unchecked ({type: sim, ifname: a/b,
 // baud: 1, device: rel} loaded). Every driver row's key is here, and the README's column says the
 // same.
+namespace {
+// Markdown helpers of the README guards (no std::regex: GCC 12 warns inside it under -O2 with the
+// sanitizers, -Wmaybe-uninitialized, and -Werror makes that an error).
+// The `quoted` names in s made of `allowed` characters, in order.
+std::vector<std::string> backticked(const std::string& s, const std::string& allowed) {
+  std::vector<std::string> v;
+  for (std::size_t a = s.find('`'); a != std::string::npos; a = s.find('`', a + 1)) {
+    const std::size_t b = s.find('`', a + 1);
+    if (b == std::string::npos) break;
+    const std::string n = s.substr(a + 1, b - a - 1);
+    if (!n.empty() && n.find_first_not_of(allowed) == std::string::npos) v.push_back(n);
+    a = b;
+  }
+  return v;
+}
+const std::string kLower = "abcdefghijklmnopqrstuvwxyz_";
+const std::string kKeyChars = kLower + "ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789.";
+// `word` in s, not as a part of a longer name.
+bool names_word(const std::string& s, const std::string& word) {
+  const auto name_char = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
+  for (std::size_t i = s.find(word); i != std::string::npos; i = s.find(word, i + 1))
+    if ((i == 0 || !name_char(s[i - 1])) && (i + word.size() == s.size() || !name_char(s[i + word.size()])))
+      return true;
+  return false;
+}
+}  // namespace
+
 namespace {
 const std::map<std::string, std::set<std::string>> kDriverKeyTypes = {
     {"scene", {"sim"}},          {"clock", {"sim"}},         {"command_timeout", {"sim"}},
@@ -443,13 +485,18 @@ TEST(BadInputs, DriverKeysOfAnotherTypeAreRefused) {
   ASSERT_TRUE(in);
   bool in_driver = false;
   std::map<std::string, std::set<std::string>> readme;
-  const std::regex row("^\\| `([a-z_]+)` \\| ([a-z, ]+) \\|.*");
   for (std::string line; std::getline(in, line);) {
     if (line.rfind('#', 0) == 0) in_driver = line == "## `driver`";
-    std::smatch m;
-    if (!in_driver || !std::regex_match(line, m, row) || m[1] == "type") continue;
-    std::stringstream list(m[2].str());
-    for (std::string t; std::getline(list, t, ',');) readme[m[1]].insert(t.substr(t.find_first_not_of(' ')));
+    // "| `key` | type, type | …": the first cell one name, the second the types.
+    if (!in_driver || line.rfind("| `", 0) != 0) continue;
+    const std::size_t c1 = line.find(" | ", 2), c2 = c1 == std::string::npos ? c1 : line.find(" |", c1 + 3);
+    if (c2 == std::string::npos) continue;
+    const std::vector<std::string> key = backticked(line.substr(0, c1), kLower);
+    const std::string types = line.substr(c1 + 3, c2 - c1 - 3);
+    if (key.size() != 1 || key[0] == "type" || types.find_first_not_of("abcdefghijklmnopqrstuvwxyz, ") != std::string::npos)
+      continue;
+    std::stringstream list(types);
+    for (std::string t; std::getline(list, t, ',');) readme[key[0]].insert(t.substr(t.find_first_not_of(' ')));
   }
   EXPECT_EQ(readme, kDriverKeyTypes) << "config/runtime/README.md's driver table, its type column";
 }
@@ -620,11 +667,9 @@ TEST(BadInputs, EverySceneKeyWithARowIsInTheReadmeTable) {
   std::ifstream in(PEDALWAVE_CONFIG_DIR "/scenes/README.md");
   ASSERT_TRUE(in) << "config/scenes/README.md";
   std::map<std::string, std::string> table;  // section → its table row
-  const std::regex name("`([a-z_]+)`");
   for (std::string line; std::getline(in, line);) {
     if (line.rfind("| `", 0) != 0) continue;
-    const std::string first = line.substr(0, line.find('|', 1));
-    for (std::sregex_iterator i(first.begin(), first.end(), name), end; i != end; ++i) table[(*i)[1]] = line;
+    for (const std::string& n : backticked(line.substr(0, line.find('|', 1)), kLower)) table[n] = line;
   }
   std::set<std::string> sections;
   for (const KeyRow& k : kSceneKeys) {
@@ -633,7 +678,7 @@ TEST(BadInputs, EverySceneKeyWithARowIsInTheReadmeTable) {
     const std::string key = k.path.substr(k.path.find_last_of('.') == std::string::npos ? 0 : k.path.find_last_of('.') + 1);
     sections.insert(section);
     ASSERT_TRUE(table.count(section)) << "no table row for " << section;
-    EXPECT_TRUE(std::regex_search(table[section], std::regex("(^|[^A-Za-z0-9_])" + key + "([^A-Za-z0-9_]|$)")))
+    EXPECT_TRUE(names_word(table[section], key))
         << key << " is not named in the row of " << section;
   }
   std::set<std::string> documented;
@@ -649,20 +694,22 @@ TEST(BadInputs, EveryDaemonKeyWithARowIsInTheReadmeTable) {
   std::ifstream in(PEDALWAVE_CONFIG_DIR "/runtime/README.md");
   ASSERT_TRUE(in) << "config/runtime/README.md";
   std::map<std::string, std::set<std::string>> table;  // section ("" = top level) → the keys its table names
-  const std::regex heading("^#+ (`([a-z_]+)`|Top level)\\s*$");
-  const std::regex name("`([A-Za-z_][A-Za-z0-9_.]*)`");
   std::optional<std::string> section;  // none: a heading that names no section
   for (std::string line; std::getline(in, line);) {
-    std::smatch m;
     if (line.rfind('#', 0) == 0) {
+      // "## Top level" or "## `name`" (trailing blanks allowed); any other heading names none.
       section.reset();
-      if (std::regex_match(line, m, heading)) section = m[2].matched ? m[2].str() : std::string();
+      std::string h = line.substr(line.find_first_not_of('#'));
+      h.erase(0, h.find_first_not_of(' '));
+      h.erase(h.find_last_not_of(" \t") + 1);
+      if (h == "Top level") section = std::string();
+      else if (h.size() > 2 && h.front() == '`' && h.back() == '`' && backticked(h, kLower).size() == 1)
+        section = backticked(h, kLower)[0];
       continue;
     }
     if (!section || line.rfind("| `", 0) != 0) continue;
-    const std::string first = line.substr(0, line.find('|', 1));
-    for (std::sregex_iterator i(first.begin(), first.end(), name), end; i != end; ++i)
-      table[*section].insert((*i)[1]);
+    for (const std::string& n : backticked(line.substr(0, line.find('|', 1)), kKeyChars))
+      if (std::isalpha(static_cast<unsigned char>(n[0])) || n[0] == '_') table[*section].insert(n);
   }
   std::set<std::string> paths;
   for (const KeyRow& k : kDaemonKeys) {

@@ -53,7 +53,7 @@ class ToolOptions : public ::testing::Test {
   fs::path dir_;
 };
 
-int lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
+[[maybe_unused]] int lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
 
 }  // namespace
 

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "paper.hpp"
+#include "pedalwave/simloop/plant_checks.hpp"
 #include "pedalwave/config/shipped.hpp"
 #include "pedalwave/toolkit/cli.hpp"
 
@@ -28,6 +29,7 @@ namespace {
 
 namespace paper = pedalwave::paper;
 namespace model = pedalwave::model;
+namespace simloop = pedalwave::simloop;
 
 namespace cli = pedalwave::toolkit::cli;
 constexpr int kExitBadInput = cli::kExitBadInput;
@@ -154,9 +156,9 @@ int main(int argc, char** argv) {
   paper::Settings s;
   try {
     s = settings(c);
-    if (s.integ && !(s.integ->h <= 1.0 / s.rate_hz * (1 + 1e-9)))
-      throw std::invalid_argument("--h " + std::to_string(s.integ->h) +
-                                  ": expected ≤ the control period 1/rate = " + std::to_string(1.0 / s.rate_hz) + " s");
+    if (s.integ)  // the rule pedalwave_sim and the daemon use (simloop/plant_checks.hpp)
+      if (const std::string why = simloop::step_problem(*s.integ, s.rate_hz, "1/rate"); !why.empty())
+        throw std::invalid_argument("--h " + std::to_string(s.integ->h) + ": " + why);
     (void)paper::sweep_grid(sw.from, sw.to, sw.step);
     if (const auto f = paper::scene_file(s, s.stair_scene); !std::filesystem::exists(f))
       throw std::invalid_argument("--stair-scene " + s.stair_scene + ": no scene file " + f.string());

@@ -1,6 +1,7 @@
 #include "pedalwave/config/daemon.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -104,9 +105,15 @@ constexpr DriverKey kDriverKeys[] = {
     {"turnaround", "the serial driver's", false, false, true},
 };
 
+// `type` and every key above: what `driver:` may hold.
+constexpr auto kDriverSectionKeys = [] {
+  std::array<const char*, std::size(kDriverKeys) + 1> a{"type"};
+  for (std::size_t i = 0; i < std::size(kDriverKeys); ++i) a[i + 1] = kDriverKeys[i].key;
+  return a;
+}();
+
 void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) {
-  r.allow_only({"type", "scene", "clock", "command_timeout", "ifname", "fd", "bitrate",
-                "data_bitrate", "max_load", "device", "baud", "return_delay", "turnaround"});
+  r.allow_only(kDriverSectionKeys);
   DriverSelection& d = c.driver;
   const std::string type = r.choice("type", "sim", {"sim", "socketcan", "serial"});
   d.kind = type == "socketcan" ? DriverKind::kSocketCan

@@ -366,6 +366,10 @@ std::vector<double> Reader::numbers(const std::string& key) const {
 }
 
 void Reader::allow_only(std::initializer_list<const char*> allowed) const {
+  allow_only(std::span<const char* const>(allowed.begin(), allowed.size()));
+}
+
+void Reader::allow_only(std::span<const char* const> allowed) const {
   if (!node_.IsMap()) fail(path_.empty() ? "a map of keys" : "a map of " + path_ + " keys");
   for (const auto& kv : node_) {
     // A key that is not a word (a list or a map as a key, `[a]: 1`) is no key of ours either.

@@ -13,6 +13,7 @@
 #include <initializer_list>
 #include <optional>
 #include <stdexcept>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -90,6 +91,7 @@ class Reader {
 
   // Every key of this map must be one of `allowed` (not a map: "expected a map of <path> keys").
   void allow_only(std::initializer_list<const char*> allowed) const;
+  void allow_only(std::span<const char* const> allowed) const;
 
   // Throws ConfigError: "<file>:<line>:<col>: <path> = <value>: expected <expected>"; a key with
   // no value: "<path> = "": expected <expected> (the key has no value; remove it for the

@@ -152,7 +152,7 @@ void ModuleBank::on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept {
   keep_longest(stats_.sync_gap_max_ns, last_sync_ns_, t_ns);
   start_clock(t_ns);
   // 1. Integrate up to the SYNC with the commands applied so far.
-  plant_.advance_to(t_ns);
+  advance_plant(t_ns);
   last_advance_ns_ = t_ns;
   // 2. Command lifetime: a module without a valid command for command_timeout turns its output
   //    off now (and says so: "no command").
@@ -196,6 +196,16 @@ void ModuleBank::on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept {
   }
 }
 
+void ModuleBank::advance_plant(std::int64_t t_ns) noexcept {
+  if (front_ns_ >= 0 && t_ns < front_ns_) {
+    stats_.stamped_behind.fetch_add(1, std::memory_order_relaxed);
+    if (front_ns_ - t_ns > stats_.stamped_behind_max_ns.load(std::memory_order_relaxed))
+      stats_.stamped_behind_max_ns.store(front_ns_ - t_ns, std::memory_order_relaxed);
+  }
+  plant_.advance_to(t_ns);
+  if (t_ns > front_ns_) front_ns_ = t_ns;
+}
+
 void ModuleBank::keep_up(std::int64_t now_ns) noexcept {
   if (!clock_started_ || last_sync_ns_ < 0 || sync_interval_ns_ <= 0) return;
   if (now_ns - last_sync_ns_ > cfg_.command_timeout_ns) return;  // the host is away: the plant waits
@@ -206,7 +216,7 @@ void ModuleBank::keep_up(std::int64_t now_ns) noexcept {
     any_on = any_on || (have_cmd_[ju] && !off_[ju]);
   }
   if (!any_on) return;
-  plant_.advance_to(now_ns);
+  advance_plant(now_ns);
   last_advance_ns_ = now_ns;
   stats_.keep_ups.fetch_add(1, std::memory_order_relaxed);
 }
@@ -221,6 +231,7 @@ void ModuleBank::on_turn(std::int64_t now_ns) noexcept {
     if (held > 0 && (usual_sync_ns_ <= 0 || held > kHoldIntervals * usual_sync_ns_)) {
       plant_.hold(held);
       last_advance_ns_ += held;
+      if (front_ns_ >= 0) front_ns_ += held;
       stats_.self_stall_holds.fetch_add(1, std::memory_order_relaxed);
     }
     stats_.self_stalls.fetch_add(1, std::memory_order_relaxed);
@@ -236,7 +247,7 @@ void ModuleBank::latch(int j, double tau, double beta_ref, double beta_dot_ref, 
   const auto ju = static_cast<std::size_t>(j);
   // Up to the arrival the previous command acts; from it on this one.
   if (clock_started_) {
-    plant_.advance_to(t_ns);
+    advance_plant(t_ns);
     last_advance_ns_ = t_ns;
   }
   start_clock(t_ns);

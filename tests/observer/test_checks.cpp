@@ -196,9 +196,15 @@ TEST(Checks, LostSamplesDoNotBlindTheEncoderCheckOverModuleTiming) {
 // wire's 1e-4 rad, β̇ to 1e-3 rad/s, samples ±60 µs off the grid). Before, the check paused for
 // good at 100 Hz and the jump went unseen by it (over the VM's bus the residual then named it
 // deflection_bias).
-enum class At100Hz { kHealthy, kEncoderJump, kTorqueLost };
+// kLateCommands: joint 3's commands arrive 0.95 of a period after their sample, every 10th 1.9
+// periods after (after the next sample), so the next interval holds two commands, the earlier
+// one at an estimated time (a cycle back from the reported one, clamped to the interval's start:
+// 9 ms early); that joint's late command steps its rate by 0.2 rad/s. kLateCommandsJump: the same with the offset
+// jump.
+enum class At100Hz { kHealthy, kEncoderJump, kTorqueLost, kLateCommands, kLateCommandsJump };
 int first_fault_at_100hz(At100Hz what, FaultClass& fault, int& joint) {
-  const bool jump = what == At100Hz::kEncoderJump;
+  const bool jump = what == At100Hz::kEncoderJump || what == At100Hz::kLateCommandsJump;
+  const bool late = what == At100Hz::kLateCommands || what == At100Hz::kLateCommandsJump;
   auto p = params();
   p.period = 1e-2;
   pw::observer::FaultObserver o(p);
@@ -219,6 +225,12 @@ int first_fault_at_100hz(At100Hz what, FaultClass& fault, int& joint) {
   };
   std::array<Motion, 5> m{};
   for (Motion& x : m) x.tau = tau;
+  struct Due {
+    double at = 0;
+    std::uint64_t seq = 0;
+  };
+  std::array<std::array<Due, 4>, 5> due{};  // per joint: commands on their way, in order
+  std::array<int, 5> n_due{};
   const std::int64_t base = 1'000'000'000;
   pw::drivers::Feedback fb{};
   fb.joints = 5;
@@ -227,18 +239,30 @@ int first_fault_at_100hz(At100Hz what, FaultClass& fault, int& joint) {
     const double tk = static_cast<double>(k) * T;
     for (int j = 0; j < 5; ++j) {
       const auto i = static_cast<std::size_t>(j);
-      // The command written at cycle k − 1 arrived 0.1 … 0.9 of a period after its sample.
+      // The command written at cycle k − 1 arrived 0.1 … 0.9 of a period after its sample (late:
+      // 1.2 periods, after this sample).
+      const double jitter = 1e-6 * static_cast<double>(static_cast<int>((k * 7919 + 31 * i) % 121) - 60);
       if (k >= 1) {
-        const double arrive = tk - T + (0.1 + 0.2 * j) * T;
-        m[i].advance(arrive);
+        const bool is_late = late && j == 2 && (k - 1) % 10 == 1;
+        const double phase = late && j == 2 ? (is_late ? 1.9 : 0.95) : 0.1 + 0.2 * j;
+        due[i][static_cast<std::size_t>(n_due[i]++)] = {tk - T + phase * T, k - 1};
+      }
+      int kept = 0;
+      for (int q = 0; q < n_due[i]; ++q) {
+        const Due d = due[i][static_cast<std::size_t>(q)];
+        if (d.at > tk + jitter) {
+          due[i][static_cast<std::size_t>(kept++)] = d;
+          continue;
+        }
+        m[i].advance(d.at);
         // Torque lost on joint 0 from k = 400: the module's output is gone, the motor coasts
         // (J β̈ = 0 here, no spring), whatever the commands say.
-        if (!(what == At100Hz::kTorqueLost && j == 0 && k >= kJump)) m[i].target = ring[(k - 1) % kRing].beta_dot_ref[i];
+        if (!(what == At100Hz::kTorqueLost && j == 0 && k >= kJump)) m[i].target = ring[d.seq % kRing].beta_dot_ref[i];
         else m[i].target = m[i].rate;
-        m[i].applied = k - 1;
-        m[i].applied_ns = base + std::llround(arrive * 1e9);
+        m[i].applied = d.seq;
+        m[i].applied_ns = base + std::llround(d.at * 1e9);
       }
-      const double jitter = 1e-6 * static_cast<double>(static_cast<int>((k * 7919 + 31 * i) % 121) - 60);
+      n_due[i] = kept;
       m[i].advance(tk + jitter);
       fb.beta[i] = 1e-4 * std::round(m[i].beta / 1e-4) + (jump && j == 2 && k >= kJump ? 0.02 : 0.0);
       fb.beta_dot[i] = 1e-3 * std::round(m[i].rate / 1e-3);
@@ -265,6 +289,9 @@ int first_fault_at_100hz(At100Hz what, FaultClass& fault, int& joint) {
       c.kd[i] = kd;
       // (± 0.1 rad/s every other cycle on top: a command as jumpy as the adaptive gait's.)
       c.beta_dot_ref[i] = 2.47 * std::cos(M_PI * tk - 1.2566 * static_cast<double>(i)) + (k % 2 ? 0.1 : -0.1);
+      // The late joint: a 0.2 rad/s step up at the late command, down 5 cycles later.
+      if (late && i == 2)
+        c.beta_dot_ref[i] = 2.47 * std::cos(M_PI * tk - 1.2566 * 2.0) + (k % 10 >= 1 && k % 10 < 6 ? 0.2 : 0.0);
     }
   }
   return -1;
@@ -289,6 +316,27 @@ TEST(Checks, TheEncoderCheckRunsAt100HzWithCommandsInsideEveryInterval) {
   EXPECT_EQ(fault, FaultClass::kEncoderJump) << pw::runtime::to_string(fault);
   EXPECT_EQ(joint, 2);
   EXPECT_LE(k, 400 + 25);  // the jump window (20 cycles) after the spike
+}
+
+// A command placed at an estimated time (two in one interval: one arrived after the next sample)
+// may sit a cycle off; the step model then misses |Δβ̇_ref|·(that) of Δβ (here 0.2 rad/s · 9 ms
+// = 1.8e-3 rad, against 5e-4), and the plain trapezoid (no step) misses 0.2 rad/s · 4 ms. The
+// check judges against the threshold plus that bound (without it: a false encoder_jump on joint
+// 3 at the first late command), and the residual skips the interval (integrated, the misplaced
+// 3 N·m law step would kick r by ≈ 0.26 N·m). An offset jump is
+// still an encoder_jump on its joint.
+TEST(Checks, ACommandAtAnEstimatedTimeIsNoEncoderFault) {
+  FaultClass fault = FaultClass::kNone;
+  int joint = -1;
+  EXPECT_EQ(first_fault_at_100hz(At100Hz::kLateCommands, fault, joint), -1)
+      << pw::runtime::to_string(fault) << " on joint " << joint;
+  const int k = first_fault_at_100hz(At100Hz::kLateCommandsJump, fault, joint);
+  ASSERT_GE(k, 400) << pw::runtime::to_string(fault) << " on joint " << joint;
+  EXPECT_EQ(fault, FaultClass::kEncoderJump) << pw::runtime::to_string(fault);
+  EXPECT_EQ(joint, 2);
+  // The jump window counts checked cycles; the pause after each interval with two commands (5
+  // cycles, every 10th) stretches it: 440 measured.
+  EXPECT_LE(k, 400 + 45);
 }
 
 // The start from rest, as over a bus: the modules torque-off, then the first command (k_d = 15,

@@ -84,6 +84,7 @@ struct WalkSetup {
   std::uint32_t telemetry_domain = 0;
   double clock_drift_ppm = 0;  // modules' clock rate errors, spread over ±this [ppm]
   double plant_max_step = 0;   // virtual robot's largest plant step [s]; 0 = its default
+  std::string plots_dir{};     // bus walks: the daemon's --plots (cycles.csv); empty = none
 };
 
 // GoogleTest prints a parameter with these instead of its bytes.
@@ -202,11 +203,14 @@ inline vrobot::VirtualRobotOptions robot_options(const WalkSetup& s, const model
 // Runs the daemon (configuration cfg) with `drv` against the started `robot`, waits until the
 // safe stop's torque-off reached the modules, stops the robot and collects the results.
 inline WalkResult run_walk(const config::DaemonConfig& cfg, vrobot::VirtualRobot& robot,
-                           drivers::Driver& drv, bool telemetry = false) {
+                           drivers::Driver& drv, bool telemetry = false,
+                           const std::string& plots_dir = {}) {
   robot.start();
   WalkResult r;
   r.robot_thread = robot.thread_note();
-  r.daemon = app::run_daemon(cfg, quiet(&drv, telemetry));
+  app::DaemonOptions o = quiet(&drv, telemetry);
+  o.plots_dir = plots_dir;
+  r.daemon = app::run_daemon(cfg, o);
   // The daemon's last driver call was safe_stop(): wait until the modules latched it.
   const int J = robot.joints();
   // (A loaded or emulated machine may still be working through its backlog: wait generously.)
@@ -243,7 +247,7 @@ inline WalkResult walk_bus(const WalkSetup& s, const model::Scene& scene,
     vrobot::VirtualRobot robot(scene, pty.master, vo);
     drivers::SerialDriver drv(drivers::open_serial_port(pty.slave_path, cfg.driver.serial.baud),
                               cfg.driver.serial);
-    WalkResult r = run_walk(cfg, robot, drv, s.telemetry);
+    WalkResult r = run_walk(cfg, robot, drv, s.telemetry, s.plots_dir);
     ::close(pty.slave_keep);
     return r;
   }
@@ -252,7 +256,7 @@ inline WalkResult walk_bus(const WalkSetup& s, const model::Scene& scene,
     throw std::system_error(errno, std::generic_category(), "socketpair");
   vrobot::VirtualRobot robot(scene, sv[0], vo);
   drivers::SocketCanDriver drv(sv[1], cfg.driver.can);
-  return run_walk(cfg, robot, drv, s.telemetry);
+  return run_walk(cfg, robot, drv, s.telemetry, s.plots_dir);
 }
 
 // The deterministic part of a bus, in lockstep: read() is a SYNC at the loop's time (the modules
@@ -276,6 +280,15 @@ class BusModelDriver final : public drivers::Driver {
   // Late answers: each reply misses its read deadline with probability p (deterministic seed)
   // and reaches the host one cycle later, as the previous SYNC's answer.
   void late(double p) { late_ = p; }
+  // The application delay varies: each cycle's commands are applied delay_ns + U(0, ns) after the
+  // sample (deterministic seed) — a host whose write time within the cycle varies.
+  void delay_jitter(std::int64_t ns) { jitter_ns_ = ns; }
+  // Each SYNC reaches the modules U(0, ns) after it was sent (deterministic seed): their samples
+  // are that much later than the lower bound the clock estimate gets.
+  void sync_delay(std::int64_t ns) { sync_delay_ns_ = ns; }
+  // The first `syncs` SYNCs reach the modules `ns` later still (a machine starting up: the VM's
+  // modules' thread saw its first SYNCs ≈ 1.8 ms after they left, later ones 0.15–0.7 ms).
+  void start_delay(int syncs, std::int64_t ns) { start_syncs_ = syncs, start_delay_ns_ = ns; }
   // A host stall: from read number `at_read` on, the bus time runs `ns` ahead of the loop's (the
   // modules got no SYNC, so took no sample, for that long; the plant went on under the held
   // commands) — what a loop descheduled for ns looks like on the bus. machine = true: the
@@ -293,7 +306,12 @@ class BusModelDriver final : public drivers::Driver {
     }
     now_ns += offset_ns_;
     now_ = now_ns;
-    bank_.on_sync(++counter_, now_ns);
+    // The SYNC reaches the modules a while after it left (the host knows only the send time: the
+    // clock estimate's lower bound).
+    std::int64_t reach =
+        sync_delay_ns_ > 0 ? std::uniform_int_distribution<std::int64_t>(0, sync_delay_ns_)(sync_rng_) : 0;
+    if (reads_ <= start_syncs_) reach += start_delay_ns_;
+    bank_.on_sync(++counter_, now_ns + reach);
     const drivers::Feedback& s = bank_.sample();
     out.joints = bank_.joints();
     out.seq = ++seq_;
@@ -361,6 +379,8 @@ class BusModelDriver final : public drivers::Driver {
   drivers::IoStatus write(const drivers::Command& cmd) override {
     namespace can = drivers::can;
     seq_of_tag_[counter_] = cmd.seq;
+    const std::int64_t delay =
+        delay_ns_ + (jitter_ns_ > 0 ? std::uniform_int_distribution<std::int64_t>(0, jitter_ns_)(jitter_rng_) : 0);
     for (int g = 0; g * can::kFdJointsPerFrame < bank_.joints(); ++g) {
       can::FdCommandGroup grp{};
       grp.group = g;
@@ -380,7 +400,7 @@ class BusModelDriver final : public drivers::Driver {
       for (int k = 0; k < back.count; ++k) {
         const can::FdJointCommand& c = back.joint[static_cast<std::size_t>(k)];
         bank_.latch(g * can::kFdJointsPerFrame + k, c.tau, c.beta_ref, c.beta_dot_ref, true, c.kp,
-                    c.kd, back.torque_off, back.counter, now_ + delay_ns_);
+                    c.kd, back.torque_off, back.counter, now_ + delay);
       }
     }
     return drivers::IoStatus::kOk;
@@ -405,6 +425,9 @@ class BusModelDriver final : public drivers::Driver {
   bool report_timing_;
   double loss_;
   double late_ = 0.0;
+  std::int64_t jitter_ns_ = 0, sync_delay_ns_ = 0, start_delay_ns_ = 0;
+  int start_syncs_ = 0;
+  std::mt19937_64 jitter_rng_{23}, sync_rng_{29};
   struct Pending {
     bool valid = false;
     double beta = 0, beta_dot = 0, deflection = 0;
@@ -433,6 +456,10 @@ struct BusModel {
   bool report_timing = true;   // false: FeedbackTiming::kNominal (no timing records)
   double loss = 0.0;           // share of replies lost
   double late = 0.0;           // share of replies that miss the read deadline (BusModelDriver::late)
+  double delay_jitter = 0.0;   // the delay varies by up to this fraction of the period more (uniform)
+  double sync_delay = 0.0;     // SYNCs reach the modules up to this many seconds after leaving (uniform)
+  double start_delay = 0.0;    // … and the first start_syncs of them this much later still [s]
+  int start_syncs = 0;
   int stall_at_cycle = 0;      // > 0: a stall of stall_periods there (BusModelDriver::stall)
   int stall_periods = 0;
   bool machine_stall = false;  // the stall held the modules' thread too: the plant held
@@ -450,6 +477,9 @@ inline WalkResult walk_bus_model(WalkSetup s, const model::Scene& scene, const B
   if (m.stall_at_cycle > 0)
     drv.stall(m.stall_at_cycle, std::llround(m.stall_periods * 1e9 / s.rate_hz), m.machine_stall);
   drv.late(m.late);
+  drv.delay_jitter(std::llround(m.delay_jitter * 1e9 / s.rate_hz));
+  drv.sync_delay(std::llround(m.sync_delay * 1e9));
+  drv.start_delay(m.start_syncs, std::llround(m.start_delay * 1e9));
   WalkResult r;
   app::DaemonOptions o = quiet(&drv);
   o.plots_dir = m.plots_dir;

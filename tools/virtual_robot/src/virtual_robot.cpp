@@ -103,6 +103,9 @@ std::string VirtualRobot::report() {
     o << "; the machine held the modules' thread " << s.self_stalls.load() << " time(s) ≥ 20 ms, "
       << 1e-6 * static_cast<double>(s.self_stall_ns.load()) << " ms in all (the plant held "
       << s.self_stall_holds.load() << " of them, longer than 10 SYNC intervals; integrated the rest)";
+  if (s.stamped_behind.load() > 0)
+    o << "; " << s.stamped_behind.load() << " SYNC(s) or command(s) stamped before the plant's time (up to "
+      << 1e-6 * static_cast<double>(s.stamped_behind_max_ns.load()) << " ms)";
   o << "\n";
   o << "  faults injected: replies dropped " << s.replies_dropped.load() << ", corrupted "
     << s.replies_corrupted.load() << ", command lifetime expired " << s.lifetime_expired.load();

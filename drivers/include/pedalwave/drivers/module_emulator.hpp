@@ -129,6 +129,11 @@ struct EmulatorStats {
   // this thread) held the SYNCs, not the host.
   std::atomic<std::int64_t> sync_gap_max_ns{0};
   std::atomic<std::int64_t> reply_gap_max_ns{0};
+  // SYNCs and commands stamped before the time the plant had already been integrated to (the
+  // sample was taken, or the command applied, later than its stamp says), and the largest such
+  // lag [-, ns]. 0 on a consistent emulator: every stamp the host sees is when it happened.
+  std::atomic<std::uint64_t> stamped_behind{0};
+  std::atomic<std::int64_t> stamped_behind_max_ns{0};
 };
 
 // The modules' state and fault logic, shared by the CAN and serial front ends.
@@ -201,6 +206,8 @@ class ModuleBank {
   std::array<std::int64_t, 16> recent_sync_ns_{};
   std::size_t recent_sync_next_ = 0;
   std::int64_t last_advance_ns_ = -1;   // host time the plant was last advanced to [ns]
+  std::int64_t front_ns_ = -1;          // the latest host time the plant has been integrated to [ns]
+  void advance_plant(std::int64_t t_ns) noexcept;  // plant_.advance_to, counting stamps behind
   std::int64_t last_turn_ns_ = -1;      // end of the front end's previous loop turn [ns]
   Feedback sample_{};
   Command latched_{};                      // latest command per joint (applied at SYNC)

@@ -192,6 +192,10 @@ class FaultObserver {
   // Sample intervals not integrated (timing record missing, command not kept, two commands
   // applied in one interval) since reset() [-].
   std::uint64_t intervals_skipped() const { return intervals_skipped_; }
+  // Of the intervals checked, those the momentum residual skipped because a command's application
+  // time inside them was only estimated, too coarsely for the residual (Interval::estimate_bound)
+  // since reset() [-].
+  std::uint64_t intervals_estimated() const { return intervals_estimated_; }
   const FaultRecord* faults() const { return latched_.data(); }
   int fault_count() const { return n_latched_; }
   // The most severe latched fault (ties: the earliest), or nullptr.
@@ -212,10 +216,17 @@ class FaultObserver {
     int pieces = 1;                          // commands acting in turn, 1 … kMaxGap + 2
     std::array<const drivers::Command*, kMaxGap + 2> cmd{};  // piece i's command
     std::array<double, kMaxGap + 2> start{};                 // piece i from this far in [s]
+    std::array<double, kMaxGap + 2> unsure{};  // how far start[i] may be off: 0 reported, else a cycle [s]
     bool nominal = true;                     // FeedbackTiming::kNominal
     const drivers::Command* before = nullptr;  // kNominal: the command acting until t₀ (if known)
     bool gap = false;                        // spans lost samples
+    // A bound on the residual's error from application times that were estimated, not reported
+    // (commands inside a gap of lost samples, spaced back a cycle at a time) [N·m]; above
+    // kEstimatedShare of the threshold the momentum residual skips the interval (the
+    // consistency check and the hold checks still run over it).
+    double estimate_bound = 0.0;
   };
+  static constexpr double kEstimatedShare = 0.1;  // of r_threshold [-]
   bool make_interval(const drivers::Feedback& fb, const drivers::CommandHistory& cmds, int j,
                      double dt, Interval& iv);
   void residual_step(const drivers::Feedback& fb, const Interval& iv, int j, double t);
@@ -231,6 +242,7 @@ class FaultObserver {
   double speed_ = 0.0;
   double elapsed_ = 0.0;  // time since reset [s]
   std::uint64_t intervals_skipped_ = 0;
+  std::uint64_t intervals_estimated_ = 0;
   // Frame-level state
   bool have_prev_frame_ = false;
   std::uint64_t prev_seq_ = 0;

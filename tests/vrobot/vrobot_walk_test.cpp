@@ -307,6 +307,29 @@ TEST(BusModel, ObserverStaysQuietWithLateAnswersAt100Hz) {
   EXPECT_LT(peak[1], 0.03) << "N·m: the detection threshold";
 }
 
+namespace {
+// 12 s at 100 Hz against the bus model `m`, the plant at the VM's step (h = 2.5e-4 s: its own
+// residual share 3.75e-3 N·m per rad/s): the run must reach its cycle limit with no event. Returns
+// the peak |r| after 0.5 s (from the daemon's cycles.csv in TempDir()/dir_name).
+double quiet_walk_at_100hz(const char* what, const char* dir_name, test::BusModel m) {
+  WalkSetup s;
+  s.rate_hz = 100;
+  s.duration = 12;
+  s.observer = true;
+  model::Scene sc = scene();
+  sc.integrator.h = 2.5e-4;
+  m.plots_dir = ::testing::TempDir() + dir_name;
+  const WalkResult bus = test::walk_bus_model(s, sc, m);
+  const ResidualPeak p = residual_peak(m.plots_dir, 0.5, 1e9);
+  EXPECT_EQ(p.columns, 5u) << m.plots_dir << "/cycles.csv";
+  std::printf("[vrobot] bus model 100 Hz, %s: peak |r| %.4f N·m; %s\n", what, p.value,
+              bus.daemon.exit_line.c_str());
+  EXPECT_EQ(bus.daemon.run.reason, runtime::ExitReason::kCycleLimit) << bus.daemon.exit_line;
+  EXPECT_EQ(listed_events(bus), 0) << bus.daemon.exit_line;
+  return p.value;
+}
+}  // namespace
+
 // The modules' clock estimate converging at 100 Hz (the VM's start-up false alarm, issue 12).
 // The first 30 SYNCs reach the modules 1.8 ms after they left, later ones within 0.5 ms (the
 // VM's modules' thread: 1.8 ms at the start, 0.15–0.7 ms after): the estimate's lower bound then
@@ -316,22 +339,10 @@ TEST(BusModel, ObserverStaysQuietWithLateAnswersAt100Hz) {
 // the start: actuator_torque on joint 4, 0.049 N·m at 2.6 s here, as in every VM walk (0.046–0.05
 // at 2.6–2.7 s). At 20 ppm: no event, the healthy peak.
 TEST(BusModel, TheModulesClockEstimateConvergingAt100HzIsNoFault) {
-  WalkSetup s;
-  s.rate_hz = 100;
-  s.duration = 12;
-  s.observer = true;
-  model::Scene sc = scene();
-  sc.integrator.h = 2.5e-4;  // the VM's plant step: its own residual share 3.75e-3 N·m per rad/s
-  const std::string dir = ::testing::TempDir() + "pedalwave_clock_converging";
-  const WalkResult bus = test::walk_bus_model(
-      s, sc, {.delay = 0.4, .sync_delay = 5e-4, .start_delay = 1.8e-3, .start_syncs = 30, .plots_dir = dir});
-  const ResidualPeak p = residual_peak(dir, 0.5, 1e9);
-  ASSERT_EQ(p.columns, 5u) << dir << "/cycles.csv";
-  std::printf("[vrobot] bus model 100 Hz, the clock estimate converging by 1.8 ms: peak |r| %.4f N·m; %s\n",
-              p.value, bus.daemon.exit_line.c_str());
-  EXPECT_EQ(bus.daemon.run.reason, runtime::ExitReason::kCycleLimit) << bus.daemon.exit_line;
-  EXPECT_EQ(listed_events(bus), 0) << bus.daemon.exit_line;
-  EXPECT_LT(p.value, 0.75 * 0.03) << "N·m: the healthy level (1000 ppm: 0.053)";
+  const double peak = quiet_walk_at_100hz(
+      "the clock estimate converging by 1.8 ms", "pedalwave_clock_converging",
+      {.delay = 0.4, .sync_delay = 5e-4, .start_delay = 1.8e-3, .start_syncs = 30});
+  EXPECT_LT(peak, 0.75 * 0.03) << "N·m: the healthy level (1000 ppm: 0.053)";
 }
 
 // Lost replies at 100 Hz with the host's write time varying inside the cycle (on the pty the
@@ -343,22 +354,9 @@ TEST(BusModel, TheModulesClockEstimateConvergingAt100HzIsNoFault) {
 // estimated placements could move r by more than a tenth of the threshold (the checks still
 // run over it): the peak stays at the healthy level.
 TEST(BusModel, LostRepliesWithAVaryingWriteTimeAt100Hz) {
-  WalkSetup s;
-  s.rate_hz = 100;
-  s.duration = 12;
-  s.observer = true;
-  model::Scene sc = scene();
-  sc.integrator.h = 2.5e-4;  // the VM's plant step: its own residual share 3.75e-3 N·m per rad/s
-  const std::string dir = ::testing::TempDir() + "pedalwave_lost_varying";
-  const WalkResult bus =
-      test::walk_bus_model(s, sc, {.delay = 0.2, .loss = 0.05, .delay_jitter = 0.35, .plots_dir = dir});
-  const ResidualPeak p = residual_peak(dir, 0.5, 1e9);
-  ASSERT_EQ(p.columns, 5u) << dir << "/cycles.csv";
-  std::printf("[vrobot] bus model 100 Hz, 5 %% lost, write time varying by 3.5 ms: peak |r| %.4f N·m; %s\n",
-              p.value, bus.daemon.exit_line.c_str());
-  EXPECT_EQ(bus.daemon.run.reason, runtime::ExitReason::kCycleLimit) << bus.daemon.exit_line;
-  EXPECT_EQ(listed_events(bus), 0) << bus.daemon.exit_line;
-  EXPECT_LT(p.value, 0.03) << "N·m: the detection threshold (integrated: 0.056)";
+  const double peak = quiet_walk_at_100hz("5 % lost, write time varying by 3.5 ms", "pedalwave_lost_varying",
+                                          {.delay = 0.2, .loss = 0.05, .delay_jitter = 0.35});
+  EXPECT_LT(peak, 0.03) << "N·m: the detection threshold (integrated: 0.056)";
 }
 
 class BusWalk : public ::testing::TestWithParam<WalkSetup> {};

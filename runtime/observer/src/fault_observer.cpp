@@ -297,6 +297,11 @@ double law_offset(const Command& c, std::size_t k) noexcept {
   return c.torque_off ? 0.0 : c.tau[k] + c.kp[k] * c.beta_ref[k] + c.kd[k] * c.beta_dot_ref[k];
 }
 
+// The law's torque without its damping term at β: what a command switch steps [N·m].
+double law_target(const Command& c, std::size_t k, double beta) noexcept {
+  return c.torque_off ? 0.0 : law_offset(c, k) - c.kp[k] * beta;
+}
+
 }  // namespace
 
 void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j, double t) {
@@ -338,10 +343,7 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
   const auto add_switch = [&](const Command& was, const Command& now, double ta, double ta_unsure) {
     off_step = off_step || was.torque_off != now.torque_off || damping_changes(was, now, k);
     const double sa = dt - ta, beta_a = b0 + (b1 - b0) * (ta / dt);
-    const auto target = [&](const Command& x) {
-      return x.torque_off ? 0.0 : law_offset(x, k) - x.kp[k] * beta_a;
-    };
-    const double jump = (target(now) - target(was)) / (cmd.kd[k] + p_.motor_viscous);
+    const double jump = (law_target(now, k, beta_a) - law_target(was, k, beta_a)) / (cmd.kd[k] + p_.motor_viscous);
     const double f = 1.0 - std::exp(-sa / tau);
     kink += jump * (sa - tau * f - 0.5 * dt * f);
     moved += std::abs(jump);
@@ -696,10 +698,8 @@ bool FaultObserver::make_interval(const Feedback& fb, const CommandHistory& cmds
     // An estimated time is off by up to a cycle (the host's write time and the bus vary from
     // cycle to cycle: on the pty 2 or 5.5 ms into a 10 ms period, at random), and the law's
     // offset switches there: that much impulse is misplaced.
-    if (!reported) {
-      const auto target = [&](const Command& x) { return law_offset(x, k) - (x.torque_off ? 0.0 : x.kp[k] * s.beta); };
-      misplaced += std::abs(target(*iv.cmd[iu]) - target(*iv.cmd[iu - 1])) * spacing;
-    }
+    if (!reported)
+      misplaced += std::abs(law_target(*iv.cmd[iu], k, s.beta) - law_target(*iv.cmd[iu - 1], k, s.beta)) * spacing;
     iv.start[iu] = std::clamp(at, iv.start[iu - 1], iv.dt);
     iv.unsure[iu] = reported ? 0.0 : spacing;
   }

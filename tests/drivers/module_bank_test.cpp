@@ -107,4 +107,32 @@ TEST(ModuleBank, AStallShorterThanTenSyncIntervalsIsIntegratedNotHeld) {
   EXPECT_EQ(bank.stats().self_stall_holds.load(), 1u);
 }
 
+// After an overrun the host's next SYNC comes early (a late cycle, then the next one on time: an
+// interval of 2 ms among 10 ms ones). The usual interval is the typical one, not the shortest:
+// judged against the shortest, a 26 ms machine stall in the VM at 100 Hz was held (> 10 × 2 ms)
+// while the modules' clocks ran on, and the observer saw β lag β̇ by the span on every joint
+// (|c| = 0.04–0.07 rad, a false encoder_jump) in an interval it bridges.
+TEST(ModuleBank, ASyncThatCameEarlyAfterAnOverrunDoesNotShortenTheUsualInterval) {
+  FirstOrderPlant plant;
+  pd::ModuleBank bank(config(), plant);
+  std::int64_t t = kT0;
+  for (int k = 0; k < 16; ++k) {
+    // 100 Hz, one late cycle (8 ms late) every fourth: intervals 18, 2, 10, 10 ms.
+    const std::int64_t at = t + (k % 4 == 0 ? 8 * kMs : 0);
+    bank.on_sync(static_cast<std::uint8_t>(k + 1), at);
+    for (int j = 0; j < 2; ++j)
+      bank.latch(j, 0.1, 0.0, 0.0, true, 1.0, 0.01, false, static_cast<std::uint8_t>(k + 1), at + kMs / 10);
+    t += 10 * kMs;
+  }
+  const std::int64_t last = t - 10 * kMs + kMs / 10;
+  bank.end_turn(last + kMs);
+  bank.on_turn(last + 31 * kMs);  // the machine held the thread 30 ms: 3 intervals
+  EXPECT_EQ(bank.stats().self_stalls.load(), 1u);
+  EXPECT_EQ(bank.stats().self_stall_holds.load(), 0u) << "30 ms is 3 of the host's 10 ms intervals";
+  EXPECT_EQ(plant.held_ns(), 0);
+  bank.end_turn(last + 31 * kMs);
+  bank.on_turn(last + 141 * kMs);  // 110 ms: 11 intervals, held
+  EXPECT_EQ(plant.held_ns(), 110 * kMs);
+}
+
 }  // namespace

@@ -157,7 +157,7 @@ class ModuleBank {
   void keep_up(std::int64_t now_ns) noexcept;
   // At the top of every loop turn (before input is handled): a turn that comes more than 20 ms
   // after the previous one ended (turns wait ≤ 1 ms) means the machine held this thread. If the
-  // span is longer than 10 of the host's usual SYNC intervals (the shortest of the last 16), the
+  // span is longer than 10 of the host's usual SYNC intervals (the median of the last 16), the
   // plant is told to hold() it rather than integrate it on the next SYNC. A real robot's world does not pause, but a simulated one
   // paused with its machine: integrating 0.2 s of plant afterwards (≈ 5 ms of work) answered
   // the following SYNCs late, three cycles of replies missed and a module named silent after a

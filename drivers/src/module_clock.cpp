@@ -50,15 +50,37 @@ std::int64_t ModuleClock::update(std::uint32_t module_us, std::int64_t lower_ns)
 }
 
 void ModuleClock::close_block() noexcept {
+  in_block_ = 0;
+  if (blocks_ > 0) {
+    // Against the line so far: a block maximum off it by more than the largest drift could move
+    // it is a change of the least delay, not drift (the VM's modules' thread ran every SYNC
+    // ≥ 58 ms late for seconds: fitted through, the drift came out at 7000–19000 ppm).
+    const double dev = block_x_ - (a_ + b_ * static_cast<double>(block_m_ - m_ref_));
+    const double tol = kLineTolNs + kMaxDrift * 1000.0 * static_cast<double>(block_m_ - m_ref_);
+    if (dev > tol) {
+      // Far above: the blocks before were all late (their bounds loose). Start the fit again
+      // from this one, the drift estimate kept.
+      blocks_ = 0;
+      head_ = 0;
+      loose_ = 0;
+    } else if (dev < -tol) {
+      // Far below: this block was all late, its bound is loose; left out of the fit. If it
+      // persists, the clock itself stepped (a module restarted): start again from here.
+      if (++loose_ < kLooseBlocks) return;
+      blocks_ = 0;
+      head_ = 0;
+      loose_ = 0;
+    } else {
+      loose_ = 0;
+    }
+  }
   bx_[static_cast<std::size_t>(head_)] = block_x_;
   bm_[static_cast<std::size_t>(head_)] = block_m_;
   head_ = (head_ + 1) % kBlocks;
   if (blocks_ < kBlocks) ++blocks_;
-  in_block_ = 0;
   if (blocks_ < 2) {
-    a_ = bx_[0];
-    b_ = 0.0;
-    m_ref_ = bm_[0];
+    a_ = block_x_;
+    m_ref_ = block_m_;
     return;
   }
   // Least squares x = a + b (m − m_ref) through the block maxima, m_ref = the newest.
@@ -75,7 +97,7 @@ void ModuleClock::close_block() noexcept {
   const double n = blocks_;
   const double det = n * smm - sm * sm;
   if (!(det > 0)) return;
-  b_ = (n * smx - sm * sx) / det;
+  b_ = std::clamp((n * smx - sm * sx) / det, -kMaxDrift * 1000.0, kMaxDrift * 1000.0);
   a_ = (sx - b_ * sm) / n;
   m_ref_ = ref;
   // The line may sit below the best block bound by the envelope's noise; never below any bound

@@ -35,6 +35,14 @@ class ModuleClock {
   static constexpr int kBlock = 128;  // samples per envelope block [-]
   static constexpr int kBlocks = 16;  // blocks in the line fit [-]
   static constexpr double kSlew = 2e-5;  // largest correction per unit of interval [-]
+  // The largest rate error a module clock may have (PROTOCOL.md §1.1: a crystal, tens of ppm;
+  // 1000 ppm allows for any crystal or MEMS oscillator) [-]. The drift estimate is bounded by it,
+  // and a block maximum off the line by more than it (plus kLineTolNs) could move it is a change
+  // of the least delay, not drift: far above, the fit starts again from that block; far below,
+  // the block is left out (kLooseBlocks in a row: the clock stepped, start again).
+  static constexpr double kMaxDrift = 1e-3;
+  static constexpr double kLineTolNs = 50e3;
+  static constexpr int kLooseBlocks = 3;
 
   void reset() noexcept { *this = ModuleClock{}; }
   // One sample stamped `module_us` (the module's clock, wrapping at 2³²) that cannot have happened
@@ -73,6 +81,7 @@ class ModuleClock {
   std::array<double, kBlocks> bx_{};
   std::array<std::int64_t, kBlocks> bm_{};
   int blocks_ = 0, head_ = 0;
+  int loose_ = 0;  // blocks in a row far below the line [-]
   // Mapping host − base = 1000·m + a + b·(m − m_ref) [ns].
   double a_ = 0.0, b_ = 0.0;
   std::int64_t m_ref_ = 0;

@@ -134,7 +134,7 @@ LC_ALL=C sort -k3 -o "$ctl/shares" "$ctl/shares"
   while IFS='=' read -r name _; do
     case "$name" in
       CTEST_PARALLEL_LEVEL) ;;  # tests on vcan0 share one bus: parallelism only if asked (-j)
-      GTEST_*|ASAN_OPTIONS|UBSAN_OPTIONS|TSAN_OPTIONS|LSAN_OPTIONS|CTEST_*)
+      GTEST_*|ASAN_OPTIONS|UBSAN_OPTIONS|TSAN_OPTIONS|LSAN_OPTIONS|CTEST_*|PEDALWAVE_VM_*)
         printf 'export %s=%q\n' "$name" "${!name}" ;;
     esac
   done < <(env)

@@ -60,16 +60,12 @@ void ModuleClock::close_block() noexcept {
     if (dev > tol) {
       // Far above: the blocks before were all late (their bounds loose). Start the fit again
       // from this one, the drift estimate kept.
-      blocks_ = 0;
-      head_ = 0;
-      loose_ = 0;
+      restart_fit();
     } else if (dev < -tol) {
       // Far below: this block was all late, its bound is loose; left out of the fit. If it
       // persists, the clock itself stepped (a module restarted): start again from here.
       if (++loose_ < kLooseBlocks) return;
-      blocks_ = 0;
-      head_ = 0;
-      loose_ = 0;
+      restart_fit();
     } else {
       loose_ = 0;
     }

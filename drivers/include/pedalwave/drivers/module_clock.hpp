@@ -82,6 +82,8 @@ class ModuleClock {
   std::array<std::int64_t, kBlocks> bm_{};
   int blocks_ = 0, head_ = 0;
   int loose_ = 0;  // blocks in a row far below the line [-]
+  // The fit starts again from the next block (the drift estimate b_ kept).
+  void restart_fit() noexcept { blocks_ = head_ = loose_ = 0; }
   // Mapping host − base = 1000·m + a + b·(m − m_ref) [ns].
   double a_ = 0.0, b_ = 0.0;
   std::int64_t m_ref_ = 0;

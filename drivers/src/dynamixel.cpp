@@ -137,6 +137,72 @@ DxlStatus build_sync_write(std::uint16_t address, std::uint16_t length,
                            out, out_len);
 }
 
+DxlStatus build_read(std::uint8_t id, std::uint16_t address, std::uint16_t length,
+                     std::span<std::uint8_t> out, std::size_t& out_len) noexcept {
+  std::uint8_t p[4];
+  wire::put_u16(p, address);
+  wire::put_u16(p + 2, length);
+  return build_instruction(id, kInstRead, p, out, out_len);
+}
+
+DxlStatus build_write(std::uint8_t id, std::uint16_t address, std::span<const std::uint8_t> data,
+                      std::span<std::uint8_t> out, std::size_t& out_len) noexcept {
+  out_len = 0;
+  std::array<std::uint8_t, 2 + kTableSize> p{};
+  if (data.empty() || data.size() > kTableSize) return DxlStatus::kBadArgument;
+  wire::put_u16(p.data(), address);
+  std::memcpy(p.data() + 2, data.data(), data.size());
+  return build_instruction(id, kInstWrite, std::span<const std::uint8_t>(p.data(), 2 + data.size()),
+                           out, out_len);
+}
+
+const Register* register_at(std::uint16_t address) noexcept {
+  for (const Register& r : kRegisters)
+    if (r.size > 0 && address >= r.address && address < r.address + r.size) return &r;
+  return nullptr;
+}
+
+int baud_index(int baud) noexcept {
+  for (int i = 0; i <= 6; ++i)
+    if (baud_of_index(i) == baud) return i;
+  return -1;
+}
+
+int baud_of_index(int index) noexcept {
+  constexpr int kBaud[] = {9600, 57600, 115200, 1'000'000, 2'000'000, 3'000'000, 4'000'000};
+  return index >= 0 && index <= 6 ? kBaud[index] : 0;
+}
+
+std::uint8_t check_read(std::uint16_t address, std::uint16_t length) noexcept {
+  if (length == 0) return kErrDataLength;
+  if (std::size_t{address} + length > kTableSize) return kErrAccess;
+  for (std::size_t a = address; a < std::size_t{address} + length; ++a) {
+    const Register* r = register_at(static_cast<std::uint16_t>(a));
+    if (r && r->access == Access::kW) return kErrAccess;
+  }
+  return 0;
+}
+
+std::uint8_t check_write(std::uint16_t address, std::span<const std::uint8_t> data,
+                         bool& eeprom) noexcept {
+  eeprom = false;
+  if (data.empty()) return kErrDataLength;
+  if (std::size_t{address} + data.size() > kTableSize) return kErrAccess;
+  std::size_t a = address;
+  const std::size_t end = address + data.size();
+  while (a < end) {
+    const Register* r = register_at(static_cast<std::uint16_t>(a));
+    if (!r || r->access == Access::kR) return kErrAccess;  // a gap or a read-only register
+    if (r->address != a || a + r->size > end) return kErrDataLength;  // entered or left midway
+    std::uint32_t v = 0;
+    for (std::size_t k = 0; k < r->size; ++k) v |= std::uint32_t{data[a - address + k]} << (8 * k);
+    if (v < r->min || v > r->max) return kErrDataRange;
+    eeprom = eeprom || r->eeprom;
+    a += r->size;
+  }
+  return 0;
+}
+
 DxlStatus parse_packet(std::span<const std::uint8_t> in, Packet& pkt,
                        std::size_t& consumed) noexcept {
   consumed = 0;

@@ -46,6 +46,7 @@ class HotPlant final : public pd::ModulePlant {
 
 struct Bus {
   int master = -1, host = -1;
+  std::string slave;
   HotPlant plant;
   std::unique_ptr<pd::SerialModuleEmulator> emu;
   std::atomic<bool> stop{false};
@@ -54,7 +55,8 @@ struct Bus {
     master = ::posix_openpt(O_RDWR | O_NOCTTY);
     if (master < 0 || ::grantpt(master) != 0 || ::unlockpt(master) != 0)
       throw std::system_error(errno, std::generic_category(), "posix_openpt");
-    host = pd::open_serial_port(::ptsname(master), 4'000'000);
+    slave = ::ptsname(master);
+    host = pd::open_serial_port(slave, 4'000'000);
     pd::EmulatorConfig ec;
     ec.joints = joints;
     ec.command_timeout_ns = 50 * kMs;
@@ -346,4 +348,76 @@ TEST(DxlModule, CommandBlockWrittenBySyncWriteReadsBack) {
   EXPECT_FALSE(bus.emu->bank().torque_off(0));
   EXPECT_TRUE(bus.emu->bank().torque_off(1));
   EXPECT_EQ(bus.emu->stats().commands.load(), 2u);
+}
+
+// ---- The host's configuration (SerialDriver::configure_modules) ----------------------------------
+namespace {
+pd::SerialConfig host_config(int joints) {
+  pd::SerialConfig cfg;
+  cfg.joints = joints;
+  cfg.baud = 4'000'000;
+  cfg.period_s = 2e-3;
+  cfg.return_delay_s = 30e-6;
+  cfg.command_timeout_s = 0.2;
+  return cfg;
+}
+std::string configure_error(Bus& bus, int joints) {
+  pd::SerialDriver drv(pd::open_serial_port(bus.slave, 4'000'000), host_config(joints));
+  try {
+    drv.configure_modules(20 * kMs);
+  } catch (const std::runtime_error& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
+TEST(SerialConfigure, IdentifiesEveryModuleAndSetsDelayAndTimeout) {
+  Bus bus(3);
+  EXPECT_EQ(bus.write(2, dxl::kRegTorqueEnable, {1})->error, 0);  // left on: turned off first
+  pd::SerialDriver drv(pd::open_serial_port(bus.slave, 4'000'000), host_config(3));
+  drv.configure_modules();
+  for (int j = 0; j < 3; ++j) {
+    EXPECT_EQ(drv.identity(j).model, dxl::kModelNumber);
+    EXPECT_EQ(drv.identity(j).firmware, dxl::kFirmwareVersion);
+    EXPECT_EQ(bus.emu->bank().command_timeout_ns(j), 200 * kMs);
+    EXPECT_TRUE(bus.emu->bank().torque_off(j));
+  }
+  EXPECT_EQ(value(*bus.read(3, dxl::kRegReturnDelay, 1)), 15u);  // 30 µs
+  // The cycle runs after it, every module fresh.
+  const pedalwave::test::CycleLog log = pedalwave::test::run_cycles(drv, 50, 2 * kMs, 20 * kMs);
+  int ok = 0;
+  for (pd::IoStatus s : log.io) ok += s == pd::IoStatus::kOk;
+  EXPECT_GE(ok, 45);
+  EXPECT_EQ(drv.counters().malformed + drv.counters().checksum, 0u);
+}
+
+TEST(SerialConfigure, RefusesTheModuleThatDisagreesNamingRegisterAndValues) {
+  {
+    Bus bus(3);
+    EXPECT_EQ(bus.write(2, dxl::kRegBaud, {3})->error, 0);  // 1 Mbaud (a pty keeps its rate)
+    const std::string e = configure_error(bus, 3);
+    EXPECT_NE(e.find("module ID 2 (joint 2)"), std::string::npos) << e;
+    EXPECT_NE(e.find("register 8 (baud rate) = 3 (1000000 baud), expected 6 (4000000 baud"),
+              std::string::npos) << e;
+  }
+  {
+    Bus bus(2);
+    const std::string e = configure_error(bus, 3);  // joint 3 has no module
+    EXPECT_NE(e.find("module ID 3 (joint 3): no answer to a Read of register 0 (model number)"),
+              std::string::npos) << e;
+  }
+  {
+    Bus bus(3, /*hot=*/0);
+    EXPECT_FALSE(bus.write(dxl::kBroadcastId, dxl::kRegSyncCounter, {1}));  // sample: it is hot
+    const std::string e = configure_error(bus, 3);
+    EXPECT_NE(e.find("module ID 1 (joint 1): register 70 (hardware error status) = 4 (overheating), "
+                     "expected 0"), std::string::npos) << e;
+  }
+  {
+    Bus bus(2);
+    EXPECT_EQ(bus.write(1, dxl::kRegId, {2})->error, 0);  // two modules answer to ID 2 now
+    const std::string e = configure_error(bus, 2);
+    EXPECT_NE(e.find("module ID 1 (joint 1): no answer"), std::string::npos) << e;
+  }
 }

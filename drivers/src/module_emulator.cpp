@@ -569,7 +569,8 @@ void SerialModuleEmulator::process(std::int64_t now) noexcept {
   }
 }
 
-void SerialModuleEmulator::enqueue(std::int64_t due, const std::uint8_t* p, std::size_t n) noexcept {
+void SerialModuleEmulator::enqueue(std::int64_t due, const std::uint8_t* p, std::size_t n,
+                                   bool feedback) noexcept {
   const std::size_t next = (tail_ + 1) % queue_.size();
   if (next == head_ || n > queue_[tail_].bytes.size()) {
     bank_.stats().replies_dropped.fetch_add(1, std::memory_order_relaxed);
@@ -579,6 +580,7 @@ void SerialModuleEmulator::enqueue(std::int64_t due, const std::uint8_t* p, std:
   q.due_ns = due;
   q.len = n;
   q.off = 0;
+  q.feedback = feedback;
   std::memcpy(q.bytes.data(), p, n);
   tail_ = next;
 }
@@ -636,9 +638,11 @@ std::uint8_t SerialModuleEmulator::write_table(int j, std::uint16_t addr,
   if (touches(dxl::kRegCommandTimeout, 2))
     bank_.set_command_timeout(j, std::int64_t{wire::get_u16(t.data() + dxl::kRegCommandTimeout)} *
                                      1'000'000);
-  const bool enable = touches(dxl::kRegTorqueEnable, 1);
+  // Torque enable = 0 on a module already off changes nothing (no command is latched).
+  const bool enable = touches(dxl::kRegTorqueEnable, 1) &&
+                      !(t[dxl::kRegTorqueEnable] == 0 && bank_.torque_off(j));
   if (touches(dxl::kRegCommand, dxl::kCommandBlockSize) || enable)
-    latch_block(j, enable && t[dxl::kRegTorqueEnable] == 0, now);
+    latch_block(j, touches(dxl::kRegTorqueEnable, 1) && t[dxl::kRegTorqueEnable] == 0, now);
   return 0;
 }
 
@@ -667,7 +671,7 @@ void SerialModuleEmulator::answer(int j, std::uint8_t err, std::span<const std::
   // Each module answers its return delay (register 9, 2 µs) after the line went quiet.
   const std::int64_t end =
       wire_.occupy(now, bytes_ns(n), std::int64_t{table_[ju][dxl::kRegReturnDelay]} * 2000);
-  enqueue(end + (cycle ? bank_.latency_ns() : 0), out.data(), n);
+  enqueue(end + (cycle ? bank_.latency_ns() : 0), out.data(), n, cycle && kind == Kind::kRead);
 }
 
 void SerialModuleEmulator::handle(std::int64_t read_ns) noexcept {
@@ -701,7 +705,7 @@ void SerialModuleEmulator::handle(std::int64_t read_ns) noexcept {
         const std::uint16_t len = wire::get_u16(prm + 2);
         const std::uint8_t err = read_table(target, wire::get_u16(prm), len);
         answer(target, err, err ? none : std::span<const std::uint8_t>(reply_.data(), len),
-               Kind::kRead, now, true);
+               Kind::kRead, now, false);
       }
       break;
     case dxl::kInstWrite: {
@@ -813,7 +817,8 @@ void SerialModuleEmulator::flush(std::int64_t now) noexcept {
     }
     q.off += static_cast<std::size_t>(r);
     if (q.off < q.len) return;
-    bank_.on_reply_sent(now);
+    if (q.feedback) bank_.on_reply_sent(now);
+    else bank_.stats().other_replies.fetch_add(1, std::memory_order_relaxed);
     head_ = (head_ + 1) % queue_.size();
   }
 }

@@ -181,6 +181,11 @@ TEST(DxlModule, WritesFollowAccessRangeAndEepromRules) {
   // A refused write changes nothing, also not its valid part.
   EXPECT_EQ(bus.write(1, dxl::kRegReturnDelay, {7, 1})->error, dxl::kErrDataLength);
   EXPECT_EQ(value(*bus.read(1, dxl::kRegReturnDelay, 1)), 5u);
+  // Torque enable = 0 on a module that is off is no command (the host's configuration writes it).
+  EXPECT_EQ(bus.write(1, dxl::kRegTorqueEnable, {0})->error, 0);
+  EXPECT_EQ(bus.emu->stats().commands.load(), 0u);
+  EXPECT_EQ(bus.emu->stats().replies_sent.load(), 0u);  // none of these answered a cycle's read
+  EXPECT_GT(bus.emu->stats().other_replies.load(), 10u);
   // Torque on: the EEPROM area is locked (Access Error); off again: writable.
   EXPECT_EQ(bus.write(1, dxl::kRegTorqueEnable, {1})->error, 0);
   EXPECT_EQ(value(*bus.read(1, dxl::kRegTorqueEnable, 1)), 1u);

@@ -115,7 +115,10 @@ void spread_module_clocks(EmulatorConfig& cfg, double drift_ppm, std::uint32_t s
 // Counters of the emulated side (read from any thread).
 struct EmulatorStats {
   std::atomic<std::uint64_t> syncs{0};           // SYNCs handled [-]
-  std::atomic<std::uint64_t> replies_sent{0};    // feedback frames / status packets sent [-]
+  std::atomic<std::uint64_t> replies_sent{0};    // feedback frames / the cycle's status packets
+                                                 // (answers to Sync / Bulk Read) sent [-]
+  std::atomic<std::uint64_t> other_replies{0};   // serial: status packets answering anything else
+                                                 // (Ping, Read, Write, errors: configuration) [-]
   std::atomic<std::uint64_t> replies_dropped{0}; // not sent because of injected loss/silence [-]
   std::atomic<std::uint64_t> replies_corrupted{0};  // sent with an injected bit error [-]
   std::atomic<std::uint64_t> commands{0};        // valid command frames / blocks latched [-]
@@ -311,11 +314,12 @@ class SerialModuleEmulator {
     std::int64_t due_ns = 0;   // send time, CLOCK_MONOTONIC [ns]
     std::size_t len = 0;       // bytes still to send [bytes]
     std::size_t off = 0;       // bytes already sent [bytes]
+    bool feedback = false;     // an answer to the cycle's Sync / Bulk Read [-]
     std::array<std::uint8_t, 256> bytes{};  // a status packet of the whole table: 191 bytes
   };
   enum class Kind : std::uint8_t { kPing, kRead, kOther };  // for the status return level
   void handle(std::int64_t now) noexcept;
-  void enqueue(std::int64_t due, const std::uint8_t* p, std::size_t n) noexcept;
+  void enqueue(std::int64_t due, const std::uint8_t* p, std::size_t n, bool feedback) noexcept;
   void process(std::int64_t now) noexcept;
   void flush(std::int64_t now) noexcept;
   std::int64_t bytes_ns(std::size_t n) const noexcept;  // wire time of n bytes [ns]
@@ -328,7 +332,8 @@ class SerialModuleEmulator {
   void latch_block(int j, bool off, std::int64_t now) noexcept;
   void reset_ram(int j) noexcept;
   // Module j's status packet (error | alert, params) after its return delay, if its status return
-  // level answers `kind`; `cycle`: the cycle's reads (loss, bit errors, latency apply).
+  // level answers `kind`; `cycle`: the cycle's Sync / Bulk Read (loss, bit errors, latency
+  // apply; counted in replies_sent, the rest in other_replies).
   void answer(int j, std::uint8_t err, std::span<const std::uint8_t> params, Kind kind,
               std::int64_t now, bool cycle) noexcept;
 

@@ -1,5 +1,7 @@
 #include "pedalwave/drivers/dynamixel.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include "pedalwave/drivers/crc.hpp"
@@ -303,5 +305,27 @@ void decode_feedback_block(const std::uint8_t* i, FeedbackBlock& fb) noexcept {
   wire::unpack_age(wire::get_u16(i + 12), fb.timing);
   fb.timing.applied_tag = i[14];
 }
+
+namespace x {
+
+void decode_servo_feedback(const std::uint8_t* i, double current_lsb, ServoFeedback& f) noexcept {
+  f.current = wire::get_i16(i) * current_lsb;
+  f.velocity = static_cast<std::int32_t>(wire::get_u32(i + 2)) * kVelocityLsb;
+  f.position = static_cast<std::int32_t>(wire::get_u32(i + 6)) * kPositionLsb;
+}
+
+std::int16_t goal_current(double tau, double k_t, double current_lsb, std::uint16_t limit,
+                          std::uint8_t& flags) noexcept {
+  const double counts = tau / (k_t * current_lsb);
+  if (!std::isfinite(counts)) {
+    flags |= wire::kQuantNotFinite;
+    return 0;
+  }
+  const double lim = limit;
+  if (counts > lim || counts < -lim) flags |= wire::kQuantClamped;
+  return static_cast<std::int16_t>(std::lround(std::clamp(counts, -lim, lim)));
+}
+
+}  // namespace x
 
 }  // namespace pedalwave::drivers::dxl

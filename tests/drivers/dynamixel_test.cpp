@@ -239,3 +239,31 @@ TEST(Dynamixel, ControlTableRules) {
   EXPECT_EQ(dxl::baud_of_index(dxl::baud_index(4'000'000)), 4'000'000);
   EXPECT_EQ(dxl::baud_index(500'000), -1);
 }
+
+// The X-series' units (XM430-W350 e-Manual): 4096 counts per revolution, 0.229 rev/min, 2.69 mA.
+TEST(DynamixelX, FeedbackUnitsAndGoalCurrent) {
+  namespace x = dxl::x;
+  std::uint8_t raw[x::kFeedbackSize];
+  pd::wire::put_i16(raw, -100);                                        // −269 mA
+  pd::wire::put_u32(raw + 2, static_cast<std::uint32_t>(-262));        // −60 rev/min
+  pd::wire::put_u32(raw + 6, 1024);                                    // a quarter turn
+  x::ServoFeedback f{};
+  x::decode_servo_feedback(raw, x::kCurrentLsbXM430, f);
+  EXPECT_NEAR(f.current, -0.269, 1e-12);
+  EXPECT_NEAR(f.velocity, -262 * 0.229 * 2 * M_PI / 60, 1e-9);
+  EXPECT_NEAR(f.velocity, -2 * M_PI, 0.01);  // ≈ −1 rev/s
+  EXPECT_NEAR(f.position, M_PI / 2, 1e-12);
+  // Goal Current: 1 N·m through k_t = 1.78 N·m/A is 0.562 A = 209 counts; the limit saturates.
+  std::uint8_t flags = 0;
+  EXPECT_EQ(x::goal_current(1.0, 1.78, x::kCurrentLsbXM430, 1193, flags), 209);
+  EXPECT_EQ(flags, 0);
+  EXPECT_EQ(x::goal_current(-100.0, 1.78, x::kCurrentLsbXM430, 1193, flags), -1193);
+  EXPECT_EQ(flags, pd::wire::kQuantClamped);
+  flags = 0;
+  EXPECT_EQ(x::goal_current(std::nan(""), 1.78, x::kCurrentLsbXM430, 1193, flags), 0);
+  EXPECT_EQ(flags, pd::wire::kQuantNotFinite);
+  // The feedback read spans Present Current … Present Position, as the e-Manual's addresses.
+  EXPECT_EQ(x::kRegPresentVelocity, x::kRegPresentCurrent + 2);
+  EXPECT_EQ(x::kRegPresentPosition, x::kRegPresentVelocity + 4);
+  EXPECT_EQ(x::kFeedbackAddress + x::kFeedbackSize, x::kRegPresentPosition + 4u);
+}

@@ -218,4 +218,47 @@ inline constexpr std::size_t worst_packet_size(std::size_t n) noexcept {
   return kHeaderSize + n + n / 3 + 2;
 }
 
+// ---- Stock DYNAMIXEL X-series servos (PROTOCOL.md §3.6) ------------------------------------------
+// The addresses ROBOTIS publishes for the XM430 / XH430 family (e-Manual control table, e.g.
+// ROBOTIS-GIT/emanual docs/en/dxl/x/xm430-w350.md). Only what a current-controlled SEA joint uses.
+namespace x {
+inline constexpr std::uint16_t kRegModelNumber = 0;        // u16 R  (XM430-W350: 1020)
+inline constexpr std::uint16_t kRegFirmware = 6;           // u8  R
+inline constexpr std::uint16_t kRegId = 7;                 // u8  RW EEPROM
+inline constexpr std::uint16_t kRegBaud = 8;               // u8  RW EEPROM (index as above)
+inline constexpr std::uint16_t kRegReturnDelay = 9;        // u8  RW EEPROM [2 µs]
+inline constexpr std::uint16_t kRegOperatingMode = 11;     // u8  RW EEPROM (0 = current control)
+inline constexpr std::uint16_t kRegCurrentLimit = 38;      // u16 RW EEPROM [current LSB]
+inline constexpr std::uint16_t kRegTorqueEnable = 64;      // u8  RW
+inline constexpr std::uint16_t kRegStatusReturnLevel = 68; // u8  RW
+inline constexpr std::uint16_t kRegHardwareError = 70;     // u8  R
+inline constexpr std::uint16_t kRegGoalCurrent = 102;      // i16 RW [current LSB]
+inline constexpr std::uint16_t kRegPresentCurrent = 126;   // i16 R  [current LSB]
+inline constexpr std::uint16_t kRegPresentVelocity = 128;  // i32 R  [0.229 rev/min]
+inline constexpr std::uint16_t kRegPresentPosition = 132;  // i32 R  [4096 per rev]
+inline constexpr std::uint8_t kOperatingModeCurrent = 0;
+inline constexpr std::uint16_t kModelXM430W350 = 1020;
+inline constexpr std::uint16_t kModelXM430W210 = 1030;
+// Present Current … Present Position in one read: 126 … 135.
+inline constexpr std::uint16_t kFeedbackAddress = kRegPresentCurrent;
+inline constexpr std::size_t kFeedbackSize = 10;
+inline constexpr double kCurrentLsbXM430 = 2.69e-3;               // [A] (XM430 e-Manual)
+inline constexpr double kVelocityLsb = 0.229 * 2.0 * 3.14159265358979323846 / 60.0;  // [rad/s]
+inline constexpr double kPositionLsb = 2.0 * 3.14159265358979323846 / 4096.0;       // [rad]
+
+struct ServoFeedback {
+  double current = 0.0;   // present current [A]
+  double velocity = 0.0;  // present velocity, output shaft [rad/s]
+  double position = 0.0;  // present position, output shaft, 0 at count 0 [rad]
+};
+// The 10 bytes at 126 (Present Current i16, Velocity i32, Position i32) → SI, with the
+// servo's current LSB [A].
+void decode_servo_feedback(const std::uint8_t* in10, double current_lsb, ServoFeedback& f) noexcept;
+// Goal Current for output torque tau [N·m] through torque constant k_t [N·m/A]: rounded to the
+// LSB and saturated at ±limit LSB (the servo's Current Limit, register 38); NaN → 0. Returns
+// wire::kQuantClamped / kQuantNotFinite bits as the other encoders.
+std::int16_t goal_current(double tau, double k_t, double current_lsb, std::uint16_t limit,
+                          std::uint8_t& flags) noexcept;
+}  // namespace x
+
 }  // namespace pedalwave::drivers::dxl

@@ -158,10 +158,14 @@ DxlStatus build_write(std::uint8_t id, std::uint16_t address, std::span<const st
                            out, out_len);
 }
 
-const Register* register_at(std::uint16_t address) noexcept {
-  for (const Register& r : kRegisters)
+const Register* register_at(std::span<const Register> regs, std::uint16_t address) noexcept {
+  for (const Register& r : regs)
     if (r.size > 0 && address >= r.address && address < r.address + r.size) return &r;
   return nullptr;
+}
+
+const Register* register_at(std::uint16_t address) noexcept {
+  return register_at(kRegisters, address);
 }
 
 int baud_index(int baud) noexcept {
@@ -175,25 +179,26 @@ int baud_of_index(int index) noexcept {
   return index >= 0 && index <= 6 ? kBaud[index] : 0;
 }
 
-std::uint8_t check_read(std::uint16_t address, std::uint16_t length) noexcept {
+std::uint8_t check_read(std::span<const Register> regs, std::uint16_t size, std::uint16_t address,
+                        std::uint16_t length) noexcept {
   if (length == 0) return kErrDataLength;
-  if (std::size_t{address} + length > kTableSize) return kErrAccess;
+  if (std::size_t{address} + length > size) return kErrAccess;
   for (std::size_t a = address; a < std::size_t{address} + length; ++a) {
-    const Register* r = register_at(static_cast<std::uint16_t>(a));
+    const Register* r = register_at(regs, static_cast<std::uint16_t>(a));
     if (r && r->access == Access::kW) return kErrAccess;
   }
   return 0;
 }
 
-std::uint8_t check_write(std::uint16_t address, std::span<const std::uint8_t> data,
-                         bool& eeprom) noexcept {
+std::uint8_t check_write(std::span<const Register> regs, std::uint16_t size, std::uint16_t address,
+                         std::span<const std::uint8_t> data, bool& eeprom) noexcept {
   eeprom = false;
   if (data.empty()) return kErrDataLength;
-  if (std::size_t{address} + data.size() > kTableSize) return kErrAccess;
+  if (std::size_t{address} + data.size() > size) return kErrAccess;
   std::size_t a = address;
   const std::size_t end = address + data.size();
   while (a < end) {
-    const Register* r = register_at(static_cast<std::uint16_t>(a));
+    const Register* r = register_at(regs, static_cast<std::uint16_t>(a));
     if (!r || r->access == Access::kR) return kErrAccess;  // a gap or a read-only register
     if (r->address != a || a + r->size > end) return kErrDataLength;  // entered or left midway
     std::uint32_t v = 0;
@@ -203,6 +208,15 @@ std::uint8_t check_write(std::uint16_t address, std::span<const std::uint8_t> da
     a += r->size;
   }
   return 0;
+}
+
+std::uint8_t check_read(std::uint16_t address, std::uint16_t length) noexcept {
+  return check_read(kRegisters, kTableSize, address, length);
+}
+
+std::uint8_t check_write(std::uint16_t address, std::span<const std::uint8_t> data,
+                         bool& eeprom) noexcept {
+  return check_write(kRegisters, kTableSize, address, data, eeprom);
 }
 
 DxlStatus parse_packet(std::span<const std::uint8_t> in, Packet& pkt,

@@ -478,26 +478,62 @@ SerialModuleEmulator::SerialModuleEmulator(int fd, const EmulatorConfig& cfg, Mo
   if (fd < 0 || !detail::set_nonblocking(fd))
     throw std::invalid_argument("serial module emulator: fd = " + std::to_string(fd) +
                                 ", expected an open tty/pty");
-  // Each module's control table at power-on (PROTOCOL.md §3.2).
-  const double delay_steps = std::round(cfg.bus.return_delay_s / 2e-6);
+  // Each module's control table at power-on (PROTOCOL.md §3.2; X-series bus: §3.6).
+  x_ = cfg.serial_devices == SerialDevices::kXSeries;
+  const double delay_steps = std::clamp(std::round(cfg.bus.return_delay_s / 2e-6), 0.0, 254.0);
   const int baud_ix = dxl::baud_index(cfg.bus.baud);
+  const auto baud_reg = static_cast<std::uint8_t>(baud_ix < 0 ? 0xFF : baud_ix);  // 0xFF: a rate
+                                                                                   // outside the index
   const std::int64_t timeout_ms = (cfg.command_timeout_ns + 999'999) / 1'000'000;
+  if (x_ && (cfg.x.sensor_id_offset < bank_.joints() ||
+             cfg.x.sensor_id_offset + bank_.joints() > 252 || !(cfg.x.torque_constant > 0) ||
+             !(cfg.x.current_lsb > 0)))
+    throw std::invalid_argument("serial module emulator: X-series sensor_id_offset = " +
+                                std::to_string(cfg.x.sensor_id_offset) + ", torque_constant = " +
+                                std::to_string(cfg.x.torque_constant) + ", current_lsb = " +
+                                std::to_string(cfg.x.current_lsb) +
+                                "; expected the sensor IDs clear of the servos' and ≤ 252, both > 0");
   for (int j = 0; j < bank_.joints(); ++j) {
     auto& t = table_[static_cast<std::size_t>(j)];
-    wire::put_u16(t.data() + dxl::kRegModelNumber, dxl::kModelNumber);
-    t[dxl::kRegFirmware] = dxl::kFirmwareVersion;
     t[dxl::kRegId] = static_cast<std::uint8_t>(j + 1);
-    t[dxl::kRegBaud] = static_cast<std::uint8_t>(baud_ix < 0 ? 0xFF : baud_ix);  // 0xFF: a rate
-                                                                                   // outside the index
-    t[dxl::kRegReturnDelay] = static_cast<std::uint8_t>(std::clamp(delay_steps, 0.0, 254.0));
-    wire::put_u16(t.data() + dxl::kRegCommandTimeout,
-                  static_cast<std::uint16_t>(std::min<std::int64_t>(timeout_ms, 0xFFFF)));
+    t[dxl::kRegBaud] = baud_reg;
+    t[dxl::kRegReturnDelay] = static_cast<std::uint8_t>(delay_steps);
+    if (!x_) {
+      wire::put_u16(t.data() + dxl::kRegModelNumber, dxl::kModelNumber);
+      t[dxl::kRegFirmware] = dxl::kFirmwareVersion;
+      wire::put_u16(t.data() + dxl::kRegCommandTimeout,
+                    static_cast<std::uint16_t>(std::min<std::int64_t>(timeout_ms, 0xFFFF)));
+    } else {
+      wire::put_u16(t.data() + dxl::x::kRegModelNumber, cfg.x.model);
+      t[dxl::x::kRegFirmware] = 45;
+      t[dxl::x::kRegOperatingMode] = 3;  // position control, as shipped: the host must set 0
+      wire::put_u16(t.data() + dxl::x::kRegCurrentLimit, cfg.x.current_limit);
+      bank_.set_command_timeout(j, 0);  // a stock servo keeps its goal (no bus watchdog set)
+      auto& st = table_[static_cast<std::size_t>(kSensor + j)];
+      wire::put_u16(st.data(), dxl::x::kSensorModelNumber);
+      st[2] = 1;
+      st[dxl::kRegId] = static_cast<std::uint8_t>(j + 1 + cfg.x.sensor_id_offset);
+      st[dxl::kRegBaud] = baud_reg;
+      st[dxl::kRegReturnDelay] = static_cast<std::uint8_t>(delay_steps);
+      reset_ram(kSensor + j);
+    }
     reset_ram(j);
   }
 }
 
-void SerialModuleEmulator::reset_ram(int j) noexcept {
-  auto& t = table_[static_cast<std::size_t>(j)];
+std::span<const dxl::Register> SerialModuleEmulator::registers(int d) const noexcept {
+  if (!x_) return dxl::kRegisters;
+  return d >= kSensor ? std::span<const dxl::Register>(dxl::x::kSensorRegisters)
+                      : std::span<const dxl::Register>(dxl::x::kRegisters);
+}
+
+std::uint16_t SerialModuleEmulator::table_size(int d) const noexcept {
+  if (!x_) return dxl::kTableSize;
+  return d >= kSensor ? dxl::x::kSensorTableSize : dxl::x::kTableSize;
+}
+
+void SerialModuleEmulator::reset_ram(int d) noexcept {
+  auto& t = table_[static_cast<std::size_t>(d)];
   std::fill(t.begin() + dxl::kRegTorqueEnable, t.end(), std::uint8_t{0});
   t[dxl::kRegStatusReturnLevel] = 2;
 }
@@ -593,28 +629,70 @@ std::int64_t SerialModuleEmulator::bytes_ns(std::size_t n) const noexcept {
 int SerialModuleEmulator::joint_of(std::uint8_t id) const noexcept {
   for (int j = 0; j < bank_.joints(); ++j)
     if (table_[static_cast<std::size_t>(j)][dxl::kRegId] == id) return j;
+  if (x_)
+    for (int j = 0; j < bank_.joints(); ++j)
+      if (table_[static_cast<std::size_t>(kSensor + j)][dxl::kRegId] == id) return kSensor + j;
   return -1;
 }
 
-void SerialModuleEmulator::refresh(int j) noexcept {
+void SerialModuleEmulator::sample_now(std::int64_t now) noexcept {
+  bank_.on_sync(++x_syncs_, now);
+}
+
+void SerialModuleEmulator::refresh(int d) noexcept {
+  const int j = d >= kSensor ? d - kSensor : d;
   const auto ju = static_cast<std::size_t>(j);
-  auto& t = table_[ju];
+  auto& t = table_[static_cast<std::size_t>(d)];
   const Feedback& s = bank_.sample();
-  t[dxl::kRegTorqueEnable] = bank_.torque_off(j) ? 0 : 1;
   t[dxl::kRegHardwareError] = static_cast<std::uint8_t>(
       ((s.status[ju] & kStatusOverTemp) ? dxl::kHwErrOverheating : 0) |
       ((s.status[ju] & kStatusEncoderFault) ? dxl::kHwErrEncoder : 0));
-  const dxl::FeedbackBlock fb{s.beta[ju], s.beta_dot[ju], s.deflection[ju], s.status[ju],
-                              bank_.echo(j), bank_.timing(j)};
-  dxl::encode_feedback_block(fb, t.data() + dxl::kRegFeedback);
+  if (!x_) {
+    t[dxl::kRegTorqueEnable] = bank_.torque_off(j) ? 0 : 1;
+    const dxl::FeedbackBlock fb{s.beta[ju], s.beta_dot[ju], s.deflection[ju], s.status[ju],
+                                bank_.echo(j), bank_.timing(j)};
+    dxl::encode_feedback_block(fb, t.data() + dxl::kRegFeedback);
+    return;
+  }
+  std::uint8_t f = 0;
+  if (d >= kSensor) {
+    wire::put_i16(t.data() + dxl::x::kRegSensorDeflection,
+                  wire::to_i16(s.deflection[ju], wire::kDeflectionLsb, f));
+    return;
+  }
+  // The servo: what its current controller delivers (the goal, with torque on in current mode),
+  // the output shaft's rate and angle in its units.
+  const bool driving = t[dxl::x::kRegTorqueEnable] != 0 &&
+                       t[dxl::x::kRegOperatingMode] == dxl::x::kOperatingModeCurrent;
+  wire::put_u16(t.data() + dxl::x::kRegPresentCurrent,
+                driving ? wire::get_u16(t.data() + dxl::x::kRegGoalCurrent) : 0);
+  wire::put_u32(t.data() + dxl::x::kRegPresentVelocity,
+                static_cast<std::uint32_t>(static_cast<std::int32_t>(
+                    std::lround(s.beta_dot[ju] / dxl::x::kVelocityLsb))));
+  wire::put_u32(t.data() + dxl::x::kRegPresentPosition,
+                static_cast<std::uint32_t>(static_cast<std::int32_t>(
+                    std::lround(s.beta[ju] / dxl::x::kPositionLsb))));
+  wire::put_u16(t.data() + 120, static_cast<std::uint16_t>(
+                                    (bank_.module_clock_us(j, s.stamp_ns) / 1000u) % 32768u));
 }
 
-std::uint8_t SerialModuleEmulator::read_table(int j, std::uint16_t addr, std::uint16_t len) noexcept {
-  const std::uint8_t err = dxl::check_read(addr, len);
+std::uint8_t SerialModuleEmulator::read_table(int d, std::uint16_t addr, std::uint16_t len) noexcept {
+  const std::uint8_t err = dxl::check_read(registers(d), table_size(d), addr, len);
   if (err != 0) return err;
-  refresh(j);
-  std::memcpy(reply_.data(), table_[static_cast<std::size_t>(j)].data() + addr, len);
+  refresh(d);
+  std::memcpy(reply_.data(), table_[static_cast<std::size_t>(d)].data() + addr, len);
   return 0;
+}
+
+void SerialModuleEmulator::latch_servo(int j, std::int64_t now) noexcept {
+  const auto& t = table_[static_cast<std::size_t>(j)];
+  const XSeriesConfig& x = bank_.config().x;
+  const bool on = t[dxl::x::kRegTorqueEnable] != 0;
+  const bool current_mode = t[dxl::x::kRegOperatingMode] == dxl::x::kOperatingModeCurrent;
+  const double tau = on && current_mode ? wire::get_i16(t.data() + dxl::x::kRegGoalCurrent) *
+                                              x.current_lsb * x.torque_constant
+                                        : 0.0;
+  bank_.latch(j, tau, 0.0, 0.0, true, 0.0, 0.0, !on, 0, now);
 }
 
 void SerialModuleEmulator::latch_block(int j, bool off, std::int64_t now) noexcept {
@@ -624,31 +702,42 @@ void SerialModuleEmulator::latch_block(int j, bool off, std::int64_t now) noexce
               c.counter, now);
 }
 
-std::uint8_t SerialModuleEmulator::write_table(int j, std::uint16_t addr,
+std::uint8_t SerialModuleEmulator::write_table(int d, std::uint16_t addr,
                                                std::span<const std::uint8_t> data,
                                                std::int64_t now) noexcept {
   bool eeprom = false;
-  const std::uint8_t err = dxl::check_write(addr, data, eeprom);
+  const std::uint8_t err = dxl::check_write(registers(d), table_size(d), addr, data, eeprom);
   if (err != 0) return err;
-  if (eeprom && !bank_.torque_off(j)) return dxl::kErrAccess;  // EEPROM: torque off only
-  auto& t = table_[static_cast<std::size_t>(j)];
+  auto& t = table_[static_cast<std::size_t>(d)];
+  const bool torque_on = x_ ? d < kSensor && t[dxl::x::kRegTorqueEnable] != 0 : !bank_.torque_off(d);
+  if (eeprom && torque_on) return dxl::kErrAccess;  // EEPROM: torque off only
+  const bool was_on = t[dxl::kRegTorqueEnable] != 0;
   std::memcpy(t.data() + addr, data.data(), data.size());
   const std::size_t end = std::size_t{addr} + data.size();
   auto touches = [&](std::uint16_t first, std::size_t n) { return addr < first + n && end > first; };
+  if (x_) {
+    // A servo: a new goal current or torque enable acts at once (a sensor has nothing to act).
+    if (d < kSensor && (touches(dxl::x::kRegGoalCurrent, 2) ||
+                        (touches(dxl::x::kRegTorqueEnable, 1) &&
+                         was_on != (t[dxl::x::kRegTorqueEnable] != 0))))
+      latch_servo(d, now);
+    return 0;
+  }
   if (touches(dxl::kRegCommandTimeout, 2))
-    bank_.set_command_timeout(j, std::int64_t{wire::get_u16(t.data() + dxl::kRegCommandTimeout)} *
+    bank_.set_command_timeout(d, std::int64_t{wire::get_u16(t.data() + dxl::kRegCommandTimeout)} *
                                      1'000'000);
   // Torque enable = 0 on a module already off changes nothing (no command is latched).
   const bool enable = touches(dxl::kRegTorqueEnable, 1) &&
-                      !(t[dxl::kRegTorqueEnable] == 0 && bank_.torque_off(j));
+                      !(t[dxl::kRegTorqueEnable] == 0 && bank_.torque_off(d));
   if (touches(dxl::kRegCommand, dxl::kCommandBlockSize) || enable)
-    latch_block(j, touches(dxl::kRegTorqueEnable, 1) && t[dxl::kRegTorqueEnable] == 0, now);
+    latch_block(d, touches(dxl::kRegTorqueEnable, 1) && t[dxl::kRegTorqueEnable] == 0, now);
   return 0;
 }
 
-void SerialModuleEmulator::answer(int j, std::uint8_t err, std::span<const std::uint8_t> params,
+void SerialModuleEmulator::answer(int d, std::uint8_t err, std::span<const std::uint8_t> params,
                                   Kind kind, std::int64_t now, bool cycle) noexcept {
-  const auto ju = static_cast<std::size_t>(j);
+  const int j = d >= kSensor ? d - kSensor : d;
+  const auto ju = static_cast<std::size_t>(d);
   const std::uint8_t level = table_[ju][dxl::kRegStatusReturnLevel];
   if ((kind == Kind::kRead && level < 1) || (kind == Kind::kOther && level < 2)) return;
   EmulatorStats& st = bank_.stats();
@@ -656,7 +745,7 @@ void SerialModuleEmulator::answer(int j, std::uint8_t err, std::span<const std::
     st.replies_dropped.fetch_add(1, std::memory_order_relaxed);
     return;
   }
-  refresh(j);
+  refresh(d);
   if (table_[ju][dxl::kRegHardwareError] != 0) err |= dxl::kErrAlert;
   std::array<std::uint8_t, 256> out{};
   std::size_t n = 0;
@@ -688,11 +777,13 @@ void SerialModuleEmulator::handle(std::int64_t read_ns) noexcept {
 
   switch (p.instruction) {
     case dxl::kInstPing:
-      for (int j = 0; j < joints; ++j) {
-        if (!broadcast && j != target) continue;
-        const auto& t = table_[static_cast<std::size_t>(j)];
-        const std::uint8_t info[3] = {t[0], t[1], t[dxl::kRegFirmware]};
-        answer(j, 0, info, Kind::kPing, now, false);
+      for (int d = 0; d < kSensor + joints; ++d) {
+        if (d == joints) d = x_ ? kSensor : kSensor + joints;  // the sensors, on an X-series bus
+        if (d >= kSensor + joints || (!broadcast && d != target)) continue;
+        const auto& t = table_[static_cast<std::size_t>(d)];
+        const bool servo = x_ && d < kSensor;
+        const std::uint8_t info[3] = {t[0], t[1], t[servo ? dxl::x::kRegFirmware : dxl::kRegFirmware]};
+        answer(d, 0, info, Kind::kPing, now, false);
       }
       break;
     case dxl::kInstRead:
@@ -718,13 +809,16 @@ void SerialModuleEmulator::handle(std::int64_t read_ns) noexcept {
       const std::span<const std::uint8_t> data(prm + 2, np - 2);
       bool eeprom = false;
       // The serial bus's SYNC: a write of the sync counter, for the whole bank, once.
-      if (dxl::check_write(addr, data, eeprom) == 0 && addr <= dxl::kRegSyncCounter &&
+      if (!x_ && dxl::check_write(addr, data, eeprom) == 0 && addr <= dxl::kRegSyncCounter &&
           std::size_t{addr} + data.size() > dxl::kRegSyncCounter)
         bank_.on_sync(data[dxl::kRegSyncCounter - addr], now);
+      if (!broadcast) {
+        answer(target, write_table(target, addr, data, now), none, Kind::kOther, now, false);
+        break;
+      }
       for (int j = 0; j < joints; ++j) {
-        if (!broadcast && j != target) continue;
-        const std::uint8_t err = write_table(j, addr, data, now);
-        if (!broadcast) answer(j, err, none, Kind::kOther, now, false);
+        (void)write_table(j, addr, data, now);
+        if (x_) (void)write_table(kSensor + j, addr, data, now);
       }
       break;
     }
@@ -737,6 +831,8 @@ void SerialModuleEmulator::handle(std::int64_t read_ns) noexcept {
         break;
       }
       // Sync: addr, len, then IDs; Bulk: (ID, addr, len) per module. Answers in list order.
+      // A stock servo samples when the read arrives (it has no sync counter).
+      if (x_) sample_now(now);
       for (std::size_t k = bulk ? 0 : 4; k < np; k += bulk ? 5 : 1) {
         const int j = joint_of(prm[k]);
         if (j < 0) continue;  // another device on the bus answers for itself
@@ -773,7 +869,7 @@ void SerialModuleEmulator::handle(std::int64_t read_ns) noexcept {
         const std::span<const std::uint8_t> data(prm + k + head, len);
         bool eeprom = false;
         if (j >= 0) {
-          if (dxl::check_write(addr, data, eeprom) == 0 && addr <= dxl::kRegSyncCounter &&
+          if (!x_ && dxl::check_write(addr, data, eeprom) == 0 && addr <= dxl::kRegSyncCounter &&
               std::size_t{addr} + len > dxl::kRegSyncCounter)
             bank_.on_sync(data[dxl::kRegSyncCounter - addr], now);
           (void)write_table(j, addr, data, now);  // broadcast: no status packet
@@ -786,7 +882,8 @@ void SerialModuleEmulator::handle(std::int64_t read_ns) noexcept {
       if (target < 0) break;
       answer(target, 0, none, Kind::kOther, now, false);
       reset_ram(target);
-      latch_block(target, true, now);
+      if (!x_) latch_block(target, true, now);
+      else if (target < kSensor) latch_servo(target, now);
       break;
     case dxl::kInstFastSyncRead:
     case dxl::kInstFastBulkRead:

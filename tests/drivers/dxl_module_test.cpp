@@ -426,3 +426,40 @@ TEST(SerialConfigure, RefusesTheModuleThatDisagreesNamingRegisterAndValues) {
     EXPECT_NE(e.find("module ID 1 (joint 1): no answer"), std::string::npos) << e;
   }
 }
+
+// The X-series bus (PROTOCOL.md §3.6): a stock servo per joint and its deflection sensor.
+TEST(DxlXSeriesBus, ServoInCurrentModeAndSensorAnswer) {
+  int master = ::posix_openpt(O_RDWR | O_NOCTTY);
+  ASSERT_TRUE(master >= 0 && ::grantpt(master) == 0 && ::unlockpt(master) == 0);
+  Bus host(1);  // (only its helpers; the X bus below gets its own pty)
+  ::close(host.host);
+  host.host = pd::open_serial_port(::ptsname(master), 4'000'000);
+  pedalwave::test::FirstOrderPlant plant;
+  pd::EmulatorConfig ec;
+  ec.joints = 2;
+  ec.serial_devices = pd::SerialDevices::kXSeries;
+  pd::SerialModuleEmulator emu(master, ec, plant);
+  std::atomic<bool> stop{false};
+  std::thread th([&] { emu.run(stop); });
+  EXPECT_EQ(value(*host.read(1, dxl::x::kRegModelNumber, 2)), dxl::x::kModelXM430W350);
+  EXPECT_EQ(value(*host.read(101, dxl::x::kRegModelNumber, 2)), dxl::x::kSensorModelNumber);
+  EXPECT_EQ(value(*host.read(1, dxl::x::kRegOperatingMode, 1)), 3u);  // as shipped
+  EXPECT_EQ(host.write(1, dxl::x::kRegOperatingMode, {0})->error, 0);
+  EXPECT_EQ(host.write(1, dxl::x::kRegTorqueEnable, {1})->error, 0);
+  EXPECT_EQ(host.write(1, dxl::x::kRegOperatingMode, {3})->error, dxl::kErrAccess);  // EEPROM, on
+  EXPECT_EQ(host.write(1, dxl::x::kRegGoalCurrent, {100, 0})->error, 0);
+  EXPECT_NEAR(plant.last_command().tau[0], 100 * 2.69e-3 * 1.78, 1e-9);
+  EXPECT_FALSE(emu.bank().torque_off(0));
+  host.send(dxl::kBroadcastId, dxl::kInstBulkRead,
+            {1, dxl::x::kFeedbackAddress, 0, dxl::x::kFeedbackSize, 0, 101, 124, 0, 2, 0});
+  const auto a = host.recv(), b = host.recv();
+  ASSERT_TRUE(a && b);
+  EXPECT_EQ(a->id, 1);
+  ASSERT_EQ(a->param_count, dxl::x::kFeedbackSize);
+  EXPECT_EQ(pd::wire::get_i16(a->params.data()), 100);  // present current = goal
+  EXPECT_EQ(b->id, 101);
+  EXPECT_EQ(b->param_count, 2u);
+  stop = true;
+  th.join();
+  ::close(master);
+}

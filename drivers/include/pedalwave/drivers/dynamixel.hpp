@@ -132,6 +132,12 @@ int baud_of_index(int index) noexcept;
 std::uint8_t check_read(std::uint16_t address, std::uint16_t length) noexcept;
 std::uint8_t check_write(std::uint16_t address, std::span<const std::uint8_t> data,
                          bool& eeprom) noexcept;
+// The same for another device's table (`regs`, `size` bytes): the X-series servo, the sensor.
+const Register* register_at(std::span<const Register> regs, std::uint16_t address) noexcept;
+std::uint8_t check_read(std::span<const Register> regs, std::uint16_t size, std::uint16_t address,
+                        std::uint16_t length) noexcept;
+std::uint8_t check_write(std::span<const Register> regs, std::uint16_t size, std::uint16_t address,
+                         std::span<const std::uint8_t> data, bool& eeprom) noexcept;
 
 // ---- Results --------------------------------------------------------------------------------------
 enum class DxlStatus : std::uint8_t {
@@ -245,6 +251,42 @@ inline constexpr std::size_t kFeedbackSize = 10;
 inline constexpr double kCurrentLsbXM430 = 2.69e-3;               // [A] (XM430 e-Manual)
 inline constexpr double kVelocityLsb = 0.229 * 2.0 * 3.14159265358979323846 / 60.0;  // [rad/s]
 inline constexpr double kPositionLsb = 2.0 * 3.14159265358979323846 / 4096.0;       // [rad]
+
+// The servo's control table as far as the emulator keeps it (PROTOCOL.md §3.6); other addresses
+// are gaps here.
+inline constexpr std::uint16_t kTableSize = 136;
+inline constexpr std::array<Register, 15> kRegisters = {{
+    {0, 2, Access::kR, true, 0, 0xFFFF, "model number"},
+    {6, 1, Access::kR, true, 0, 0xFF, "firmware version"},
+    {7, 1, Access::kRW, true, 0, 252, "ID"},
+    {8, 1, Access::kRW, true, 0, 7, "baud rate"},
+    {9, 1, Access::kRW, true, 0, 254, "return delay time"},
+    {11, 1, Access::kRW, true, 0, 16, "operating mode"},
+    {38, 2, Access::kRW, true, 0, 0xFFFF, "current limit"},
+    {64, 1, Access::kRW, false, 0, 1, "torque enable"},
+    {68, 1, Access::kRW, false, 0, 2, "status return level"},
+    {70, 1, Access::kR, false, 0, 0xFF, "hardware error status"},
+    {102, 2, Access::kRW, false, 0, 0xFFFF, "goal current"},
+    {120, 2, Access::kR, false, 0, 0xFFFF, "realtime tick"},
+    {126, 2, Access::kR, false, 0, 0xFFFF, "present current"},
+    {128, 4, Access::kR, false, 0, 0xFFFFFFFF, "present velocity"},
+    {132, 4, Access::kR, false, 0, 0xFFFFFFFF, "present position"},
+}};
+// The SEA deflection sensor beside each stock servo (pedalwave's own device, ID = servo ID +
+// sensor offset): the deflection at 124 as a pedalwave module's (int16, 2e-5 rad).
+inline constexpr std::uint16_t kSensorModelNumber = 0x5053;  // "PS"
+inline constexpr std::uint16_t kRegSensorDeflection = 124;
+inline constexpr std::uint16_t kSensorTableSize = 126;
+inline constexpr std::array<Register, 8> kSensorRegisters = {{
+    {0, 2, Access::kR, true, 0, 0xFFFF, "model number"},
+    {2, 1, Access::kR, true, 0, 0xFF, "firmware version"},
+    {7, 1, Access::kRW, true, 1, 252, "ID"},
+    {8, 1, Access::kRW, true, 0, 6, "baud rate"},
+    {9, 1, Access::kRW, true, 0, 254, "return delay time"},
+    {68, 1, Access::kRW, false, 0, 2, "status return level"},
+    {70, 1, Access::kR, false, 0, 0xFF, "hardware error status"},
+    {124, 2, Access::kR, false, 0, 0xFFFF, "deflection"},
+}};
 
 struct ServoFeedback {
   double current = 0.0;   // present current [A]

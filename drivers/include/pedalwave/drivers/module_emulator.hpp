@@ -96,8 +96,22 @@ struct BusTimingConfig {
   std::int64_t inter_byte_timeout_ns = 1'000'000;
 };
 
+// What sits on the serial bus: pedalwave modules (PROTOCOL.md §3.2), or per joint a stock
+// X-series servo in current control (ID j + 1, §3.6) and a deflection sensor (ID j + 1 + offset).
+enum class SerialDevices : std::uint8_t { kPedalwave = 0, kXSeries };
+struct XSeriesConfig {
+  std::uint16_t model = 1020;         // the servos' model number (XM430-W350) [-]
+  double torque_constant = 1.78;      // output torque per current [N·m/A] (XM430-W350 at 12 V:
+                                      // 4.1 N·m stall at 2.3 A)
+  double current_lsb = 2.69e-3;       // Goal / Present Current LSB [A]
+  std::uint16_t current_limit = 1193; // register 38 [LSB]
+  int sensor_id_offset = 100;         // sensor ID = servo ID + this [-]
+};
+
 struct EmulatorConfig {
   int joints = 5;                                 // modules, nodes/IDs 1…joints [-]
+  SerialDevices serial_devices = SerialDevices::kPedalwave;
+  XSeriesConfig x{};
   bool fd = false;                                // CAN: FD frame set (command groups, FD replies)
   std::int64_t command_timeout_ns = 500'000'000;  // command lifetime [ns] (> the host's stale_timeout)
   BusTimingConfig bus{};
@@ -324,13 +338,20 @@ class SerialModuleEmulator {
   void flush(std::int64_t now) noexcept;
   std::int64_t bytes_ns(std::size_t n) const noexcept;  // wire time of n bytes [ns]
   // The control table.
-  int joint_of(std::uint8_t id) const noexcept;  // the module answering to `id`, -1: none
-  void refresh(int j) noexcept;                  // live registers (torque, errors, feedback)
-  std::uint8_t read_table(int j, std::uint16_t addr, std::uint16_t len) noexcept;  // → reply_
-  std::uint8_t write_table(int j, std::uint16_t addr, std::span<const std::uint8_t> data,
+  // Devices d: 0 … joints − 1 the modules (or X-series servos) of joint d; kMaxJoints + j the
+  // deflection sensor of joint j (X-series bus only).
+  static constexpr int kSensor = kMaxJoints;
+  int joint_of(std::uint8_t id) const noexcept;  // the device answering to `id`, -1: none
+  std::span<const dxl::Register> registers(int d) const noexcept;
+  std::uint16_t table_size(int d) const noexcept;
+  void refresh(int d) noexcept;                  // live registers (torque, errors, feedback)
+  std::uint8_t read_table(int d, std::uint16_t addr, std::uint16_t len) noexcept;  // → reply_
+  std::uint8_t write_table(int d, std::uint16_t addr, std::span<const std::uint8_t> data,
                            std::int64_t now) noexcept;
   void latch_block(int j, bool off, std::int64_t now) noexcept;
-  void reset_ram(int j) noexcept;
+  void latch_servo(int j, std::int64_t now) noexcept;  // X-series: goal current → torque
+  void reset_ram(int d) noexcept;
+  void sample_now(std::int64_t now) noexcept;  // X-series: a read samples (no sync counter)
   // Module j's status packet (error | alert, params) after its return delay, if its status return
   // level answers `kind`; `cycle`: the cycle's Sync / Bulk Read (loss, bit errors, latency
   // apply; counted in replies_sent, the rest in other_replies).
@@ -346,8 +367,10 @@ class SerialModuleEmulator {
   std::size_t rx_len_ = 0;
   std::int64_t last_rx_ns_ = 0;   // when the last byte arrived [ns]
   bool resync_ = false;           // skipping the rest of a packet that failed its CRC
-  std::array<std::array<std::uint8_t, dxl::kTableSize>, kMaxJoints> table_{};
-  std::array<std::uint8_t, dxl::kTableSize> reply_{};
+  bool x_ = false;                // an X-series bus
+  std::uint8_t x_syncs_ = 0;      // the X-series bus's sample counter [-]
+  std::array<std::array<std::uint8_t, dxl::x::kTableSize>, 2 * kMaxJoints> table_{};
+  std::array<std::uint8_t, dxl::x::kTableSize> reply_{};
   std::array<Pending, 256> queue_{};
   std::size_t head_ = 0, tail_ = 0;
   bool blocked_ = false;  // the last write found the line full

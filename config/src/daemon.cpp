@@ -93,7 +93,7 @@ struct DriverKey {
 constexpr DriverKey kDriverKeys[] = {
     {"scene", "the sim driver's", true, false, false},
     {"clock", "the sim driver's", true, false, false},
-    {"command_timeout", "the sim driver's", true, false, false},
+    {"command_timeout", "the sim and serial drivers'", true, false, true},
     {"ifname", "the socketcan driver's", false, true, false},
     {"fd", "the socketcan driver's", false, true, false},
     {"bitrate", "the socketcan driver's", false, true, false},
@@ -185,6 +185,7 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
     d.serial.joints = joints;
     d.serial.return_delay_s = r.bounded("return_delay", 20e-6, 0, 0.1, "s");
     d.serial.turnaround_s = r.bounded("turnaround", 0.0, 0, 0.1, "s");
+    d.serial.command_timeout_s = r.bounded("command_timeout", 0.5, 0, 10, "s", true);
     d.serial.max_load = r.bounded("max_load", 0.8, 0, 1, "-", true);
     d.serial.period_s = period;
     checked(r, "driver", [&] {

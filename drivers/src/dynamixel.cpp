@@ -1,5 +1,7 @@
 #include "pedalwave/drivers/dynamixel.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include "pedalwave/drivers/crc.hpp"
@@ -137,6 +139,86 @@ DxlStatus build_sync_write(std::uint16_t address, std::uint16_t length,
                            out, out_len);
 }
 
+DxlStatus build_read(std::uint8_t id, std::uint16_t address, std::uint16_t length,
+                     std::span<std::uint8_t> out, std::size_t& out_len) noexcept {
+  std::uint8_t p[4];
+  wire::put_u16(p, address);
+  wire::put_u16(p + 2, length);
+  return build_instruction(id, kInstRead, p, out, out_len);
+}
+
+DxlStatus build_write(std::uint8_t id, std::uint16_t address, std::span<const std::uint8_t> data,
+                      std::span<std::uint8_t> out, std::size_t& out_len) noexcept {
+  out_len = 0;
+  std::array<std::uint8_t, 2 + kTableSize> p{};
+  if (data.empty() || data.size() > kTableSize) return DxlStatus::kBadArgument;
+  wire::put_u16(p.data(), address);
+  std::memcpy(p.data() + 2, data.data(), data.size());
+  return build_instruction(id, kInstWrite, std::span<const std::uint8_t>(p.data(), 2 + data.size()),
+                           out, out_len);
+}
+
+const Register* register_at(std::span<const Register> regs, std::uint16_t address) noexcept {
+  for (const Register& r : regs)
+    if (r.size > 0 && address >= r.address && address < r.address + r.size) return &r;
+  return nullptr;
+}
+
+const Register* register_at(std::uint16_t address) noexcept {
+  return register_at(kRegisters, address);
+}
+
+int baud_index(int baud) noexcept {
+  for (int i = 0; i <= 6; ++i)
+    if (baud_of_index(i) == baud) return i;
+  return -1;
+}
+
+int baud_of_index(int index) noexcept {
+  constexpr int kBaud[] = {9600, 57600, 115200, 1'000'000, 2'000'000, 3'000'000, 4'000'000};
+  return index >= 0 && index <= 6 ? kBaud[index] : 0;
+}
+
+std::uint8_t check_read(std::span<const Register> regs, std::uint16_t size, std::uint16_t address,
+                        std::uint16_t length) noexcept {
+  if (length == 0) return kErrDataLength;
+  if (std::size_t{address} + length > size) return kErrAccess;
+  for (std::size_t a = address; a < std::size_t{address} + length; ++a) {
+    const Register* r = register_at(regs, static_cast<std::uint16_t>(a));
+    if (r && r->access == Access::kW) return kErrAccess;
+  }
+  return 0;
+}
+
+std::uint8_t check_write(std::span<const Register> regs, std::uint16_t size, std::uint16_t address,
+                         std::span<const std::uint8_t> data, bool& eeprom) noexcept {
+  eeprom = false;
+  if (data.empty()) return kErrDataLength;
+  if (std::size_t{address} + data.size() > size) return kErrAccess;
+  std::size_t a = address;
+  const std::size_t end = address + data.size();
+  while (a < end) {
+    const Register* r = register_at(regs, static_cast<std::uint16_t>(a));
+    if (!r || r->access == Access::kR) return kErrAccess;  // a gap or a read-only register
+    if (r->address != a || a + r->size > end) return kErrDataLength;  // entered or left midway
+    std::uint32_t v = 0;
+    for (std::size_t k = 0; k < r->size; ++k) v |= std::uint32_t{data[a - address + k]} << (8 * k);
+    if (v < r->min || v > r->max) return kErrDataRange;
+    eeprom = eeprom || r->eeprom;
+    a += r->size;
+  }
+  return 0;
+}
+
+std::uint8_t check_read(std::uint16_t address, std::uint16_t length) noexcept {
+  return check_read(kRegisters, kTableSize, address, length);
+}
+
+std::uint8_t check_write(std::uint16_t address, std::span<const std::uint8_t> data,
+                         bool& eeprom) noexcept {
+  return check_write(kRegisters, kTableSize, address, data, eeprom);
+}
+
 DxlStatus parse_packet(std::span<const std::uint8_t> in, Packet& pkt,
                        std::size_t& consumed) noexcept {
   consumed = 0;
@@ -237,5 +319,27 @@ void decode_feedback_block(const std::uint8_t* i, FeedbackBlock& fb) noexcept {
   wire::unpack_age(wire::get_u16(i + 12), fb.timing);
   fb.timing.applied_tag = i[14];
 }
+
+namespace x {
+
+void decode_servo_feedback(const std::uint8_t* i, double current_lsb, ServoFeedback& f) noexcept {
+  f.current = wire::get_i16(i) * current_lsb;
+  f.velocity = static_cast<std::int32_t>(wire::get_u32(i + 2)) * kVelocityLsb;
+  f.position = static_cast<std::int32_t>(wire::get_u32(i + 6)) * kPositionLsb;
+}
+
+std::int16_t goal_current(double tau, double k_t, double current_lsb, std::uint16_t limit,
+                          std::uint8_t& flags) noexcept {
+  const double counts = tau / (k_t * current_lsb);
+  if (!std::isfinite(counts)) {
+    flags |= wire::kQuantNotFinite;
+    return 0;
+  }
+  const double lim = limit;
+  if (counts > lim || counts < -lim) flags |= wire::kQuantClamped;
+  return static_cast<std::int16_t>(std::lround(std::clamp(counts, -lim, lim)));
+}
+
+}  // namespace x
 
 }  // namespace pedalwave::drivers::dxl

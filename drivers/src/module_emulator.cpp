@@ -72,6 +72,7 @@ ModuleBank::ModuleBank(const EmulatorConfig& cfg, ModulePlant& plant)
         "latency ≥ 0");
   latched_.joints = cfg.joints;
   sample_.joints = cfg.joints;
+  timeout_ns_.fill(cfg.command_timeout_ns);
   off_.fill(true);  // torque off until the first command
   apply_now();
 }
@@ -167,7 +168,7 @@ void ModuleBank::on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept {
   bool changed = false;
   for (int j = 0; j < cfg_.joints; ++j) {
     const auto ju = static_cast<std::size_t>(j);
-    if (have_cmd_[ju] && t_ns - last_cmd_ns_[ju] > cfg_.command_timeout_ns) {
+    if (have_cmd_[ju] && timeout_ns_[ju] > 0 && t_ns - last_cmd_ns_[ju] > timeout_ns_[ju]) {
       have_cmd_[ju] = false;
       off_[ju] = true;
       no_command_[ju] = true;
@@ -280,6 +281,10 @@ void ModuleBank::latch(int j, double tau, double beta_ref, double beta_dot_ref, 
   }
   off_[ju] = torque_off;
   apply_now();
+}
+
+void ModuleBank::set_command_timeout(int j, std::int64_t ns) noexcept {
+  if (j >= 0 && j < cfg_.joints) timeout_ns_[static_cast<std::size_t>(j)] = ns < 0 ? 0 : ns;
 }
 
 void ModuleBank::latch_gains(int j, double kp, double kd) noexcept {
@@ -473,9 +478,68 @@ SerialModuleEmulator::SerialModuleEmulator(int fd, const EmulatorConfig& cfg, Mo
   if (fd < 0 || !detail::set_nonblocking(fd))
     throw std::invalid_argument("serial module emulator: fd = " + std::to_string(fd) +
                                 ", expected an open tty/pty");
+  // Each module's control table at power-on (PROTOCOL.md §3.2; X-series bus: §3.6).
+  x_ = cfg.serial_devices == SerialDevices::kXSeries;
+  const double delay_steps = std::clamp(std::round(cfg.bus.return_delay_s / 2e-6), 0.0, 254.0);
+  const int baud_ix = dxl::baud_index(cfg.bus.baud);
+  const auto baud_reg = static_cast<std::uint8_t>(baud_ix < 0 ? 0xFF : baud_ix);  // 0xFF: a rate
+                                                                                   // outside the index
+  const std::int64_t timeout_ms = (cfg.command_timeout_ns + 999'999) / 1'000'000;
+  if (x_ && (cfg.x.sensor_id_offset < bank_.joints() ||
+             cfg.x.sensor_id_offset + bank_.joints() > 252 || !(cfg.x.torque_constant > 0) ||
+             !(cfg.x.current_lsb > 0)))
+    throw std::invalid_argument("serial module emulator: X-series sensor_id_offset = " +
+                                std::to_string(cfg.x.sensor_id_offset) + ", torque_constant = " +
+                                std::to_string(cfg.x.torque_constant) + ", current_lsb = " +
+                                std::to_string(cfg.x.current_lsb) +
+                                "; expected the sensor IDs clear of the servos' and ≤ 252, both > 0");
+  for (int j = 0; j < bank_.joints(); ++j) {
+    auto& t = table_[static_cast<std::size_t>(j)];
+    t[dxl::kRegId] = static_cast<std::uint8_t>(j + 1);
+    t[dxl::kRegBaud] = baud_reg;
+    t[dxl::kRegReturnDelay] = static_cast<std::uint8_t>(delay_steps);
+    if (!x_) {
+      wire::put_u16(t.data() + dxl::kRegModelNumber, dxl::kModelNumber);
+      t[dxl::kRegFirmware] = dxl::kFirmwareVersion;
+      wire::put_u16(t.data() + dxl::kRegCommandTimeout,
+                    static_cast<std::uint16_t>(std::min<std::int64_t>(timeout_ms, 0xFFFF)));
+    } else {
+      wire::put_u16(t.data() + dxl::x::kRegModelNumber, cfg.x.model);
+      t[dxl::x::kRegFirmware] = 45;
+      t[dxl::x::kRegOperatingMode] = 3;  // position control, as shipped: the host must set 0
+      wire::put_u16(t.data() + dxl::x::kRegCurrentLimit, cfg.x.current_limit);
+      bank_.set_command_timeout(j, 0);  // a stock servo keeps its goal (no bus watchdog set)
+      auto& st = table_[static_cast<std::size_t>(kSensor + j)];
+      wire::put_u16(st.data(), dxl::x::kSensorModelNumber);
+      st[2] = 1;
+      st[dxl::kRegId] = static_cast<std::uint8_t>(j + 1 + cfg.x.sensor_id_offset);
+      st[dxl::kRegBaud] = baud_reg;
+      st[dxl::kRegReturnDelay] = static_cast<std::uint8_t>(delay_steps);
+      reset_ram(kSensor + j);
+    }
+    reset_ram(j);
+  }
+}
+
+std::span<const dxl::Register> SerialModuleEmulator::registers(int d) const noexcept {
+  if (!x_) return dxl::kRegisters;
+  return d >= kSensor ? std::span<const dxl::Register>(dxl::x::kSensorRegisters)
+                      : std::span<const dxl::Register>(dxl::x::kRegisters);
+}
+
+std::uint16_t SerialModuleEmulator::table_size(int d) const noexcept {
+  if (!x_) return dxl::kTableSize;
+  return d >= kSensor ? dxl::x::kSensorTableSize : dxl::x::kTableSize;
+}
+
+void SerialModuleEmulator::reset_ram(int d) noexcept {
+  auto& t = table_[static_cast<std::size_t>(d)];
+  std::fill(t.begin() + dxl::kRegTorqueEnable, t.end(), std::uint8_t{0});
+  t[dxl::kRegStatusReturnLevel] = 2;
 }
 
 void SerialModuleEmulator::run(const std::atomic<bool>& stop) {
+  const std::int64_t inter_byte_ns = bank_.config().bus.inter_byte_timeout_ns;
   while (!stop.load(std::memory_order_acquire)) {
     std::int64_t now = detail::monotonic_ns();
     const std::int64_t due = head_ != tail_ ? queue_[head_].due_ns : 0;
@@ -490,7 +554,21 @@ void SerialModuleEmulator::run(const std::atomic<bool>& stop) {
       rx_len_ += static_cast<std::size_t>(n);
       got = true;
     }
-    if (got) process(detail::monotonic_ns());
+    now = detail::monotonic_ns();
+    if (got) {
+      last_rx_ns_ = now;
+      process(now);
+    } else if (rx_len_ > 0 && inter_byte_ns > 0 && now - last_rx_ns_ > inter_byte_ns) {
+      // Inter-byte timeout: the packet at the front is no packet (a LEN too long, a line cut
+      // mid-packet); without it, it would swallow the packets that follow. Its header is
+      // dropped and the bytes after it are parsed again (a whole packet among them is handled).
+      bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
+      std::memmove(rx_.data(), rx_.data() + 1, rx_len_ - 1);
+      --rx_len_;
+      resync_ = true;
+      last_rx_ns_ = now;  // what is left gets its own timeout
+      process(now);
+    }
     if (!got && (ev & (POLLHUP | POLLERR))) sleep_ns(kPollSliceNs);  // no peer yet / any more
     now = detail::monotonic_ns();
     flush(now);
@@ -507,8 +585,18 @@ void SerialModuleEmulator::process(std::int64_t now) noexcept {
         std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
     if (s == dxl::DxlStatus::kNeedMore) break;
     packet_bytes_ = used;
-    if (s == dxl::DxlStatus::kOk) handle(now);
-    else bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
+    if (s == dxl::DxlStatus::kOk) {
+      resync_ = false;
+      handle(now);
+    } else if (s == dxl::DxlStatus::kChecksum) {
+      // Resynchronize on the next byte: a LEN corrupted too long would otherwise take the
+      // packets inside it along (byte stuffing keeps a header out of a packet's body).
+      used = 1;
+      resync_ = true;
+      bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
+    } else if (!(s == dxl::DxlStatus::kGarbage && resync_)) {
+      bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
+    }
     pos += used;
   }
   if (pos > 0) {
@@ -517,7 +605,8 @@ void SerialModuleEmulator::process(std::int64_t now) noexcept {
   }
 }
 
-void SerialModuleEmulator::enqueue(std::int64_t due, const std::uint8_t* p, std::size_t n) noexcept {
+void SerialModuleEmulator::enqueue(std::int64_t due, const std::uint8_t* p, std::size_t n,
+                                   bool feedback) noexcept {
   const std::size_t next = (tail_ + 1) % queue_.size();
   if (next == head_ || n > queue_[tail_].bytes.size()) {
     bank_.stats().replies_dropped.fetch_add(1, std::memory_order_relaxed);
@@ -527,6 +616,7 @@ void SerialModuleEmulator::enqueue(std::int64_t due, const std::uint8_t* p, std:
   q.due_ns = due;
   q.len = n;
   q.off = 0;
+  q.feedback = feedback;
   std::memcpy(q.bytes.data(), p, n);
   tail_ = next;
 }
@@ -536,104 +626,282 @@ std::int64_t SerialModuleEmulator::bytes_ns(std::size_t n) const noexcept {
                                                 static_cast<double>(bank_.config().bus.baud)));
 }
 
+int SerialModuleEmulator::joint_of(std::uint8_t id) const noexcept {
+  for (int j = 0; j < bank_.joints(); ++j)
+    if (table_[static_cast<std::size_t>(j)][dxl::kRegId] == id) return j;
+  if (x_)
+    for (int j = 0; j < bank_.joints(); ++j)
+      if (table_[static_cast<std::size_t>(kSensor + j)][dxl::kRegId] == id) return kSensor + j;
+  return -1;
+}
+
+void SerialModuleEmulator::sample_now(std::int64_t now) noexcept {
+  bank_.on_sync(++x_syncs_, now);
+}
+
+void SerialModuleEmulator::refresh(int d) noexcept {
+  const int j = d >= kSensor ? d - kSensor : d;
+  const auto ju = static_cast<std::size_t>(j);
+  auto& t = table_[static_cast<std::size_t>(d)];
+  const Feedback& s = bank_.sample();
+  t[dxl::kRegHardwareError] = static_cast<std::uint8_t>(
+      ((s.status[ju] & kStatusOverTemp) ? dxl::kHwErrOverheating : 0) |
+      ((s.status[ju] & kStatusEncoderFault) ? dxl::kHwErrEncoder : 0));
+  if (!x_) {
+    t[dxl::kRegTorqueEnable] = bank_.torque_off(j) ? 0 : 1;
+    const dxl::FeedbackBlock fb{s.beta[ju], s.beta_dot[ju], s.deflection[ju], s.status[ju],
+                                bank_.echo(j), bank_.timing(j)};
+    dxl::encode_feedback_block(fb, t.data() + dxl::kRegFeedback);
+    return;
+  }
+  std::uint8_t f = 0;
+  if (d >= kSensor) {
+    wire::put_i16(t.data() + dxl::x::kRegSensorDeflection,
+                  wire::to_i16(s.deflection[ju], wire::kDeflectionLsb, f));
+    return;
+  }
+  // The servo: what its current controller delivers (the goal, with torque on in current mode),
+  // the output shaft's rate and angle in its units.
+  const bool driving = t[dxl::x::kRegTorqueEnable] != 0 &&
+                       t[dxl::x::kRegOperatingMode] == dxl::x::kOperatingModeCurrent;
+  wire::put_u16(t.data() + dxl::x::kRegPresentCurrent,
+                driving ? wire::get_u16(t.data() + dxl::x::kRegGoalCurrent) : 0);
+  wire::put_u32(t.data() + dxl::x::kRegPresentVelocity,
+                static_cast<std::uint32_t>(static_cast<std::int32_t>(
+                    std::lround(s.beta_dot[ju] / dxl::x::kVelocityLsb))));
+  wire::put_u32(t.data() + dxl::x::kRegPresentPosition,
+                static_cast<std::uint32_t>(static_cast<std::int32_t>(
+                    std::lround(s.beta[ju] / dxl::x::kPositionLsb))));
+  wire::put_u16(t.data() + 120, static_cast<std::uint16_t>(
+                                    (bank_.module_clock_us(j, s.stamp_ns) / 1000u) % 32768u));
+}
+
+std::uint8_t SerialModuleEmulator::read_table(int d, std::uint16_t addr, std::uint16_t len) noexcept {
+  const std::uint8_t err = dxl::check_read(registers(d), table_size(d), addr, len);
+  if (err != 0) return err;
+  refresh(d);
+  std::memcpy(reply_.data(), table_[static_cast<std::size_t>(d)].data() + addr, len);
+  return 0;
+}
+
+void SerialModuleEmulator::latch_servo(int j, std::int64_t now) noexcept {
+  const auto& t = table_[static_cast<std::size_t>(j)];
+  const XSeriesConfig& x = bank_.config().x;
+  const bool on = t[dxl::x::kRegTorqueEnable] != 0;
+  const bool current_mode = t[dxl::x::kRegOperatingMode] == dxl::x::kOperatingModeCurrent;
+  const double tau = on && current_mode ? wire::get_i16(t.data() + dxl::x::kRegGoalCurrent) *
+                                              x.current_lsb * x.torque_constant
+                                        : 0.0;
+  bank_.latch(j, tau, 0.0, 0.0, true, 0.0, 0.0, !on, 0, now);
+}
+
+void SerialModuleEmulator::latch_block(int j, bool off, std::int64_t now) noexcept {
+  dxl::CommandBlock c{};
+  dxl::decode_command_block(table_[static_cast<std::size_t>(j)].data() + dxl::kRegCommand, c);
+  bank_.latch(j, c.tau, c.beta_ref, c.beta_dot_ref, true, c.kp, c.kd, off || c.torque_off,
+              c.counter, now);
+}
+
+std::uint8_t SerialModuleEmulator::write_table(int d, std::uint16_t addr,
+                                               std::span<const std::uint8_t> data,
+                                               std::int64_t now) noexcept {
+  bool eeprom = false;
+  const std::uint8_t err = dxl::check_write(registers(d), table_size(d), addr, data, eeprom);
+  if (err != 0) return err;
+  auto& t = table_[static_cast<std::size_t>(d)];
+  const bool torque_on = x_ ? d < kSensor && t[dxl::x::kRegTorqueEnable] != 0 : !bank_.torque_off(d);
+  if (eeprom && torque_on) return dxl::kErrAccess;  // EEPROM: torque off only
+  const bool was_on = t[dxl::kRegTorqueEnable] != 0;
+  std::memcpy(t.data() + addr, data.data(), data.size());
+  const std::size_t end = std::size_t{addr} + data.size();
+  auto touches = [&](std::uint16_t first, std::size_t n) { return addr < first + n && end > first; };
+  if (x_) {
+    // A servo: a new goal current or torque enable acts at once (a sensor has nothing to act).
+    if (d < kSensor && (touches(dxl::x::kRegGoalCurrent, 2) ||
+                        (touches(dxl::x::kRegTorqueEnable, 1) &&
+                         was_on != (t[dxl::x::kRegTorqueEnable] != 0))))
+      latch_servo(d, now);
+    return 0;
+  }
+  if (touches(dxl::kRegCommandTimeout, 2))
+    bank_.set_command_timeout(d, std::int64_t{wire::get_u16(t.data() + dxl::kRegCommandTimeout)} *
+                                     1'000'000);
+  // Torque enable = 0 on a module already off changes nothing (no command is latched).
+  const bool enable = touches(dxl::kRegTorqueEnable, 1) &&
+                      !(t[dxl::kRegTorqueEnable] == 0 && bank_.torque_off(d));
+  if (touches(dxl::kRegCommand, dxl::kCommandBlockSize) || enable)
+    latch_block(d, touches(dxl::kRegTorqueEnable, 1) && t[dxl::kRegTorqueEnable] == 0, now);
+  return 0;
+}
+
+void SerialModuleEmulator::answer(int d, std::uint8_t err, std::span<const std::uint8_t> params,
+                                  Kind kind, std::int64_t now, bool cycle) noexcept {
+  const int j = d >= kSensor ? d - kSensor : d;
+  const auto ju = static_cast<std::size_t>(d);
+  const std::uint8_t level = table_[ju][dxl::kRegStatusReturnLevel];
+  if ((kind == Kind::kRead && level < 1) || (kind == Kind::kOther && level < 2)) return;
+  EmulatorStats& st = bank_.stats();
+  if (bank_.silent(j) || (cycle && bank_.lose())) {
+    st.replies_dropped.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  refresh(d);
+  if (table_[ju][dxl::kRegHardwareError] != 0) err |= dxl::kErrAlert;
+  std::array<std::uint8_t, 256> out{};
+  std::size_t n = 0;
+  if (dxl::build_status(table_[ju][dxl::kRegId], err, params, out, n) != dxl::DxlStatus::kOk) return;
+  if (cycle && bank_.corrupt()) {
+    // Flip one bit of a parameter byte (after the header and length), so the CRC fails.
+    const std::uint32_t r = bank_.random();
+    const std::size_t first = dxl::kHeaderSize + 2, span = n - 2 - first;
+    out[first + r % span] ^= static_cast<std::uint8_t>(1u << ((r >> 8) % 8));
+    st.replies_corrupted.fetch_add(1, std::memory_order_relaxed);
+  }
+  // Each module answers its return delay (register 9, 2 µs) after the line went quiet.
+  const std::int64_t end =
+      wire_.occupy(now, bytes_ns(n), std::int64_t{table_[ju][dxl::kRegReturnDelay]} * 2000);
+  enqueue(end + (cycle ? bank_.latency_ns() : 0), out.data(), n, cycle && kind == Kind::kRead);
+}
+
 void SerialModuleEmulator::handle(std::int64_t read_ns) noexcept {
   const dxl::Packet& p = pkt_;
   // The packet has reached the modules when its last byte has crossed the line.
   const std::int64_t now = wire_.occupy(read_ns, bytes_ns(packet_bytes_));
   EmulatorStats& st = bank_.stats();
   const int joints = bank_.joints();
-  auto ours = [&](std::uint8_t id) { return id >= 1 && id <= joints; };
-  const std::uint16_t addr = p.param_count >= 2 ? wire::get_u16(p.params.data()) : 0;
+  const bool broadcast = p.id == dxl::kBroadcastId;
+  const int target = broadcast ? -1 : joint_of(p.id);
+  const std::uint8_t* prm = p.params.data();
+  const std::size_t np = p.param_count;
+  const std::span<const std::uint8_t> none{};
 
-  // Broadcast write of the sync counter: the serial bus's SYNC.
-  if (p.instruction == dxl::kInstWrite && p.id == dxl::kBroadcastId && p.param_count == 3 &&
-      addr == dxl::kRegSyncCounter) {
-    bank_.on_sync(p.params[2], now);
-    return;
-  }
-  if (p.instruction == dxl::kInstSyncRead && p.id == dxl::kBroadcastId && p.param_count >= 5) {
-    const std::uint16_t len = wire::get_u16(p.params.data() + 2);
-    if (addr != dxl::kRegFeedback || len != dxl::kFeedbackBlockSize) {
-      st.rx_errors.fetch_add(1, std::memory_order_relaxed);
+  switch (p.instruction) {
+    case dxl::kInstPing:
+      for (int d = 0; d < kSensor + joints; ++d) {
+        if (d == joints) d = x_ ? kSensor : kSensor + joints;  // the sensors, on an X-series bus
+        if (d >= kSensor + joints || (!broadcast && d != target)) continue;
+        const auto& t = table_[static_cast<std::size_t>(d)];
+        const bool servo = x_ && d < kSensor;
+        const std::uint8_t info[3] = {t[0], t[1], t[servo ? dxl::x::kRegFirmware : dxl::kRegFirmware]};
+        answer(d, 0, info, Kind::kPing, now, false);
+      }
+      break;
+    case dxl::kInstRead:
+      if (target < 0) break;  // broadcast Read: no status packet; another ID: not ours
+      if (np != 4) {
+        answer(target, dxl::kErrDataLength, none, Kind::kRead, now, false);
+        break;
+      }
+      {
+        const std::uint16_t len = wire::get_u16(prm + 2);
+        const std::uint8_t err = read_table(target, wire::get_u16(prm), len);
+        answer(target, err, err ? none : std::span<const std::uint8_t>(reply_.data(), len),
+               Kind::kRead, now, false);
+      }
+      break;
+    case dxl::kInstWrite: {
+      if (!broadcast && target < 0) break;
+      if (np < 3) {
+        if (target >= 0) answer(target, dxl::kErrDataLength, none, Kind::kOther, now, false);
+        break;
+      }
+      const std::uint16_t addr = wire::get_u16(prm);
+      const std::span<const std::uint8_t> data(prm + 2, np - 2);
+      bool eeprom = false;
+      // The serial bus's SYNC: a write of the sync counter, for the whole bank, once.
+      if (!x_ && dxl::check_write(addr, data, eeprom) == 0 && addr <= dxl::kRegSyncCounter &&
+          std::size_t{addr} + data.size() > dxl::kRegSyncCounter)
+        bank_.on_sync(data[dxl::kRegSyncCounter - addr], now);
+      if (!broadcast) {
+        answer(target, write_table(target, addr, data, now), none, Kind::kOther, now, false);
+        break;
+      }
+      for (int j = 0; j < joints; ++j) {
+        (void)write_table(j, addr, data, now);
+        if (x_) (void)write_table(kSensor + j, addr, data, now);
+      }
+      break;
+    }
+    case dxl::kInstSyncRead:
+    case dxl::kInstBulkRead: {
+      if (!broadcast) break;
+      const bool bulk = p.instruction == dxl::kInstBulkRead;
+      if (bulk ? np % 5 != 0 || np == 0 : np < 5) {
+        st.rx_errors.fetch_add(1, std::memory_order_relaxed);
+        break;
+      }
+      // Sync: addr, len, then IDs; Bulk: (ID, addr, len) per module. Answers in list order.
+      // A stock servo samples when the read arrives (it has no sync counter).
+      if (x_) sample_now(now);
+      for (std::size_t k = bulk ? 0 : 4; k < np; k += bulk ? 5 : 1) {
+        const int j = joint_of(prm[k]);
+        if (j < 0) continue;  // another device on the bus answers for itself
+        const std::uint8_t* al = bulk ? prm + k + 1 : prm;
+        const std::uint16_t len = wire::get_u16(al + 2);
+        const std::uint8_t err = read_table(j, wire::get_u16(al), len);
+        answer(j, err, err ? none : std::span<const std::uint8_t>(reply_.data(), len), Kind::kRead,
+               now, true);
+      }
+      flush(detail::monotonic_ns());
       return;
     }
-    const Feedback& s = bank_.sample();
-    const std::int64_t latency = bank_.latency_ns();
-    const std::int64_t return_delay = static_cast<std::int64_t>(
-        std::llround(bank_.config().bus.return_delay_s * 1e9));
-    for (std::size_t k = 4; k < p.param_count; ++k) {
-      const std::uint8_t id = p.params[k];
-      if (!ours(id)) continue;  // another device on the bus answers for itself
-      const int j = id - 1;
-      const auto ju = static_cast<std::size_t>(j);
-      if (bank_.silent(j) || bank_.lose()) {
-        st.replies_dropped.fetch_add(1, std::memory_order_relaxed);
-        continue;
+    case dxl::kInstSyncWrite:
+    case dxl::kInstBulkWrite: {
+      if (!broadcast) break;
+      const bool bulk = p.instruction == dxl::kInstBulkWrite;
+      if (!bulk && (np < 4 || wire::get_u16(prm + 2) == 0 ||
+                    (np - 4) % (1u + wire::get_u16(prm + 2)) != 0)) {
+        st.rx_errors.fetch_add(1, std::memory_order_relaxed);
+        break;
       }
-      dxl::FeedbackBlock fb{s.beta[ju], s.beta_dot[ju], s.deflection[ju], s.status[ju],
-                            bank_.echo(j), bank_.timing(j)};
-      std::uint8_t block[dxl::kFeedbackBlockSize];
-      dxl::encode_feedback_block(fb, block);
-      const std::uint8_t err =
-          (s.status[ju] & (kStatusOverTemp | kStatusEncoderFault)) ? dxl::kErrAlert : 0;
-      std::array<std::uint8_t, 64> out{};
-      std::size_t n = 0;
-      if (dxl::build_status(id, err, block, out, n) != dxl::DxlStatus::kOk) continue;
-      if (bank_.corrupt()) {
-        // Flip one bit of a parameter byte (after the header and length), so the CRC fails.
-        const std::uint32_t r = bank_.random();
-        const std::size_t first = dxl::kHeaderSize + 2, span = n - 2 - first;
-        out[first + r % span] ^= static_cast<std::uint8_t>(1u << ((r >> 8) % 8));
-        st.replies_corrupted.fetch_add(1, std::memory_order_relaxed);
+      // Sync: addr, len, then (ID, data) per module; Bulk: (ID, addr, len, data) per module.
+      std::size_t k = bulk ? 0 : 4;
+      while (k < np) {
+        const std::size_t head = bulk ? 5 : 1;
+        if (k + head > np) break;
+        const std::uint8_t* al = bulk ? prm + k + 1 : prm;
+        const std::uint16_t addr = wire::get_u16(al), len = wire::get_u16(al + 2);
+        if (len == 0 || k + head + len > np) {
+          st.rx_errors.fetch_add(1, std::memory_order_relaxed);
+          break;
+        }
+        const int j = joint_of(prm[k]);
+        const std::span<const std::uint8_t> data(prm + k + head, len);
+        bool eeprom = false;
+        if (j >= 0) {
+          if (!x_ && dxl::check_write(addr, data, eeprom) == 0 && addr <= dxl::kRegSyncCounter &&
+              std::size_t{addr} + len > dxl::kRegSyncCounter)
+            bank_.on_sync(data[dxl::kRegSyncCounter - addr], now);
+          (void)write_table(j, addr, data, now);  // broadcast: no status packet
+        }
+        k += head + len;
       }
-      // In ID order: each module answers its return delay after the line went quiet.
-      const std::int64_t end = wire_.occupy(now, bytes_ns(n), return_delay);
-      enqueue(end + latency, out.data(), n);
+      break;
     }
-    flush(detail::monotonic_ns());
-    return;
+    case dxl::kInstReboot:
+      if (target < 0) break;
+      answer(target, 0, none, Kind::kOther, now, false);
+      reset_ram(target);
+      if (!x_) latch_block(target, true, now);
+      else if (target < kSensor) latch_servo(target, now);
+      break;
+    case dxl::kInstFastSyncRead:
+    case dxl::kInstFastBulkRead:
+      // Deliberately unsupported: the first listed module of ours says so.
+      for (std::size_t k = p.instruction == dxl::kInstFastSyncRead ? 4 : 0; k < np;
+           k += p.instruction == dxl::kInstFastSyncRead ? 1 : 5) {
+        const int j = joint_of(prm[k]);
+        if (j < 0) continue;
+        answer(j, dxl::kErrInstruction, none, Kind::kRead, now, false);
+        break;
+      }
+      break;
+    default:  // Factory Reset, Reg Write, Action, Clear, Backup, unknown: deliberately unsupported
+      if (target >= 0) answer(target, dxl::kErrInstruction, none, Kind::kOther, now, false);
+      break;
   }
-  if (p.instruction == dxl::kInstSyncWrite && p.id == dxl::kBroadcastId && p.param_count >= 4) {
-    const std::uint16_t len = wire::get_u16(p.params.data() + 2);
-    if (addr != dxl::kRegCommand || len != dxl::kCommandBlockSize ||
-        (p.param_count - 4) % (1u + len) != 0) {
-      st.rx_errors.fetch_add(1, std::memory_order_relaxed);
-      return;
-    }
-    for (std::size_t k = 4; k + 1 + len <= p.param_count; k += 1u + len) {
-      const std::uint8_t id = p.params[k];
-      if (!ours(id)) continue;
-      dxl::CommandBlock c{};
-      dxl::decode_command_block(p.params.data() + k + 1, c);
-      bank_.latch(id - 1, c.tau, c.beta_ref, c.beta_dot_ref, true, c.kp, c.kd, c.torque_off,
-                  c.counter, now);
-    }
-    return;
-  }
-  if (p.instruction == dxl::kInstPing && (ours(p.id) || p.id == dxl::kBroadcastId)) {
-    for (int j = 0; j < joints; ++j) {
-      const auto id = static_cast<std::uint8_t>(j + 1);
-      if (p.id != dxl::kBroadcastId && p.id != id) continue;
-      const std::uint8_t info[3] = {static_cast<std::uint8_t>(dxl::kModelNumber & 0xFF),
-                                    static_cast<std::uint8_t>(dxl::kModelNumber >> 8), 1};
-      std::array<std::uint8_t, 64> out{};
-      std::size_t n = 0;
-      if (dxl::build_status(id, 0, info, out, n) == dxl::DxlStatus::kOk) enqueue(now, out.data(), n);
-    }
-    flush(now);
-    return;
-  }
-  if (ours(p.id)) {  // unsupported instruction addressed to one of us
-    const std::uint8_t none[1] = {0};
-    std::array<std::uint8_t, 64> out{};
-    std::size_t n = 0;
-    if (dxl::build_status(p.id, dxl::kErrInstruction, std::span<const std::uint8_t>(none, 0), out,
-                          n) == dxl::DxlStatus::kOk)
-      enqueue(now, out.data(), n);
-    flush(now);
-  }
+  flush(now);
 }
-
 void SerialModuleEmulator::flush(std::int64_t now) noexcept {
   blocked_ = false;
   while (head_ != tail_ && queue_[head_].due_ns <= now) {
@@ -646,7 +914,8 @@ void SerialModuleEmulator::flush(std::int64_t now) noexcept {
     }
     q.off += static_cast<std::size_t>(r);
     if (q.off < q.len) return;
-    bank_.on_reply_sent(now);
+    if (q.feedback) bank_.on_reply_sent(now);
+    else bank_.stats().other_replies.fetch_add(1, std::memory_order_relaxed);
     head_ = (head_ + 1) % queue_.size();
   }
 }

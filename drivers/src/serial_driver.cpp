@@ -93,15 +93,29 @@ int open_serial_port(const std::string& path, int baud) {
 std::unique_ptr<SerialDriver> SerialDriver::open(const SerialConfig& cfg) {
   check_serial_bus_budget({cfg.joints, cfg.period_s, cfg.baud, cfg.return_delay_s,
                            cfg.turnaround_s, cfg.max_load});
-  return std::make_unique<SerialDriver>(open_serial_port(cfg.device, cfg.baud), cfg);
+  auto d = std::make_unique<SerialDriver>(open_serial_port(cfg.device, cfg.baud), cfg);
+  d->configure_modules();
+  return d;
 }
 
 SerialDriver::SerialDriver(int fd, const SerialConfig& cfg)
     : fd_(fd), joints_(cfg.joints), write_timeout_ns_(cfg.write_timeout_ns) {
+  baud_ = cfg.baud;
   try {
     if (fd < 0)
       throw std::invalid_argument("SerialDriver: fd = " + std::to_string(fd) +
                                   ", expected an open tty");
+    // What configure_modules() writes: in the registers' steps and ranges.
+    const double steps = std::round(cfg.return_delay_s / 2e-6);
+    if (!(steps >= 0 && steps <= 254))
+      throw std::invalid_argument("serial driver: return_delay = " + std::to_string(cfg.return_delay_s) +
+                                  " s, expected 0 … 508e-6 s (the modules' register 9: 0 … 254 × 2 µs)");
+    return_delay_steps_ = static_cast<std::uint8_t>(steps);
+    const double ms = std::round(cfg.command_timeout_s * 1e3);
+    if (!(ms >= 1 && ms <= 65535))
+      throw std::invalid_argument("serial driver: command_timeout = " + std::to_string(cfg.command_timeout_s) +
+                                  " s, expected 0.001 … 65.535 s (the modules' register 10, 1 ms steps)");
+    command_timeout_ms_ = static_cast<std::uint16_t>(ms);
     check_serial_bus_budget({cfg.joints, cfg.period_s, cfg.baud, cfg.return_delay_s,
                              cfg.turnaround_s, cfg.max_load});
     if (!detail::set_nonblocking(fd))
@@ -122,6 +136,159 @@ SerialDriver::SerialDriver(int fd, const SerialConfig& cfg)
     fd_ = -1;
     throw;
   }
+}
+
+// ---- Configuration -------------------------------------------------------------------------------
+namespace {
+const char* error_name(std::uint8_t e) {
+  switch (e & 0x7F) {
+    case dxl::kErrResultFail: return "Result Fail";
+    case dxl::kErrInstruction: return "Instruction Error";
+    case dxl::kErrCrc: return "CRC Error";
+    case dxl::kErrDataRange: return "Data Range Error";
+    case dxl::kErrDataLength: return "Data Length Error";
+    case dxl::kErrDataLimit: return "Data Limit Error";
+    case dxl::kErrAccess: return "Access Error";
+    default: return "unknown error";
+  }
+}
+std::string module_name(int j) {
+  return "serial bus: module ID " + std::to_string(j + 1) + " (joint " + std::to_string(j + 1) + ")";
+}
+std::string register_name(std::uint16_t addr) {
+  const dxl::Register* r = dxl::register_at(addr);
+  return "register " + std::to_string(addr) + " (" + (r ? r->name : "?") + ")";
+}
+std::string baud_text(int index) {
+  const int b = dxl::baud_of_index(index);
+  return b > 0 ? std::to_string(b) + " baud" : "no rate of the index";
+}
+}  // namespace
+
+bool SerialDriver::transact(const std::uint8_t* p, std::size_t n, std::uint8_t id,
+                            std::int64_t timeout_ns) {
+  // Whatever waits on the line is no answer to this request.
+  std::uint8_t junk[256];
+  while (::read(fd_, junk, sizeof junk) > 0) {
+  }
+  rx_len_ = 0;
+  const std::int64_t until = detail::monotonic_ns() + timeout_ns;
+  if (!write_all(p, n, until)) return false;
+  for (;;) {
+    std::size_t pos = 0;
+    while (pos < rx_len_) {
+      std::size_t used = 0;
+      const dxl::DxlStatus s = dxl::parse_packet(
+          std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
+      if (s == dxl::DxlStatus::kNeedMore) break;
+      pos += used;
+      if (s == dxl::DxlStatus::kOk && pkt_.instruction == dxl::kInstStatus && pkt_.id == id) {
+        rx_len_ = 0;
+        return true;
+      }
+    }
+    std::memmove(rx_.data(), rx_.data() + pos, rx_len_ - pos);
+    rx_len_ -= pos;
+    const std::int64_t left = until - detail::monotonic_ns();
+    if (left <= 0) return false;
+    pollfd pf{fd_, POLLIN, 0};
+    const timespec ts = detail::to_timespec(left);
+    if (::ppoll(&pf, 1, &ts, nullptr) > 0) {
+      const ssize_t r = ::read(fd_, rx_.data() + rx_len_, rx_.size() - rx_len_);
+      if (r > 0) rx_len_ += static_cast<std::size_t>(r);
+    }
+  }
+}
+
+std::vector<std::uint8_t> SerialDriver::read_registers(int j, std::uint16_t addr, std::uint16_t len,
+                                                       std::int64_t timeout_ns) {
+  const auto id = static_cast<std::uint8_t>(j + 1);
+  std::size_t n = 0;
+  dxl::build_read(id, addr, len, tx_, n);
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    if (!transact(tx_.data(), n, id, timeout_ns)) continue;
+    if ((pkt_.error & 0x7F) != 0)
+      throw std::runtime_error(module_name(j) + ": Read of " + register_name(addr) + ", " +
+                               std::to_string(len) + " bytes, answered error " +
+                               std::to_string(pkt_.error & 0x7F) + " (" + error_name(pkt_.error) +
+                               "), expected its value");
+    if (pkt_.param_count != len)
+      throw std::runtime_error(module_name(j) + ": Read of " + register_name(addr) + " answered " +
+                               std::to_string(pkt_.param_count) + " bytes, expected " +
+                               std::to_string(len));
+    return {pkt_.params.begin(), pkt_.params.begin() + static_cast<std::ptrdiff_t>(len)};
+  }
+  throw std::runtime_error(module_name(j) + ": no answer to a Read of " + register_name(addr) +
+                           " in 3 tries of " + std::to_string(timeout_ns / 1'000'000) +
+                           " ms, expected its status packet (is it powered, on this bus, at " +
+                           std::to_string(baud_) + " baud, with ID " + std::to_string(j + 1) +
+                           " and status return level ≥ 1?)");
+}
+
+void SerialDriver::write_registers(int j, std::uint16_t addr, const std::vector<std::uint8_t>& data,
+                                   std::int64_t timeout_ns) {
+  const auto id = static_cast<std::uint8_t>(j + 1);
+  std::size_t n = 0;
+  dxl::build_write(id, addr, data, tx_, n);
+  // At status return level 2 the Write is answered; below it, the read back below decides.
+  if (transact(tx_.data(), n, id, timeout_ns) && (pkt_.error & 0x7F) != 0)
+    throw std::runtime_error(module_name(j) + ": Write of " + register_name(addr) +
+                             " answered error " + std::to_string(pkt_.error & 0x7F) + " (" +
+                             error_name(pkt_.error) + "), expected 0");
+  const std::vector<std::uint8_t> back =
+      read_registers(j, addr, static_cast<std::uint16_t>(data.size()), timeout_ns);
+  for (std::size_t k = 0; k < data.size(); ++k) {
+    if (back[k] == data[k]) continue;
+    const auto a = static_cast<std::uint16_t>(addr + k);
+    throw std::runtime_error(module_name(j) + ": " + register_name(a) + " = " +
+                             std::to_string(back[k]) + " after writing it, expected " +
+                             std::to_string(data[k]));
+  }
+}
+
+void SerialDriver::configure_modules(std::int64_t reply_timeout_ns) {
+  const int want_baud = dxl::baud_index(baud_);
+  if (want_baud < 0)
+    throw std::invalid_argument("serial bus: driver.baud = " + std::to_string(baud_) +
+                                " has no value in the modules' register 8 (baud rate), expected "
+                                "one of 9600, 57600, 115200, 1000000, 2000000, 3000000, 4000000");
+  for (int j = 0; j < joints_; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    // 1. Who is it: model number and firmware (registers 0 … 2).
+    const std::vector<std::uint8_t> who = read_registers(j, dxl::kRegModelNumber, 3, reply_timeout_ns);
+    identity_[ju].model = wire::get_u16(who.data());
+    identity_[ju].firmware = who[2];
+    if (identity_[ju].model != dxl::kModelNumber)
+      throw std::runtime_error(module_name(j) + ": " + register_name(dxl::kRegModelNumber) + " = " +
+                               std::to_string(identity_[ju].model) + ", expected " +
+                               std::to_string(dxl::kModelNumber) + " (0x5057, a pedalwave module)");
+    // 2. ID and baud rate (registers 7, 8) as configured.
+    const std::vector<std::uint8_t> eeprom = read_registers(j, dxl::kRegId, 2, reply_timeout_ns);
+    if (eeprom[0] != j + 1)
+      throw std::runtime_error(module_name(j) + ": " + register_name(dxl::kRegId) + " = " +
+                               std::to_string(eeprom[0]) + ", expected " + std::to_string(j + 1));
+    if (eeprom[1] != want_baud)
+      throw std::runtime_error(module_name(j) + ": " + register_name(dxl::kRegBaud) + " = " +
+                               std::to_string(eeprom[1]) + " (" + baud_text(eeprom[1]) +
+                               "), expected " + std::to_string(want_baud) + " (" +
+                               baud_text(want_baud) + ", driver.baud)");
+    // 3. No hardware error (register 70).
+    const std::uint8_t hw = read_registers(j, dxl::kRegHardwareError, 1, reply_timeout_ns)[0];
+    if (hw != 0)
+      throw std::runtime_error(module_name(j) + ": " + register_name(dxl::kRegHardwareError) +
+                               " = " + std::to_string(hw) +
+                               ((hw & dxl::kHwErrOverheating) ? " (overheating)" : "") +
+                               ((hw & dxl::kHwErrEncoder) ? " (encoder fault)" : "") +
+                               ", expected 0");
+    // 4. Torque off (the EEPROM area is written only so), then return delay and command timeout
+    //    (registers 9, 10), read back.
+    write_registers(j, dxl::kRegTorqueEnable, {0}, reply_timeout_ns);
+    write_registers(j, dxl::kRegReturnDelay,
+                    {return_delay_steps_, static_cast<std::uint8_t>(command_timeout_ms_ & 0xFF),
+                     static_cast<std::uint8_t>(command_timeout_ms_ >> 8)},
+                    reply_timeout_ns);
+  }
+  rx_len_ = 0;
 }
 
 SerialDriver::~SerialDriver() {

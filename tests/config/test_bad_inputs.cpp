@@ -430,7 +430,7 @@ bool names_word(const std::string& s, const std::string& word) {
 
 namespace {
 const std::map<std::string, std::set<std::string>> kDriverKeyTypes = {
-    {"scene", {"sim"}},          {"clock", {"sim"}},         {"command_timeout", {"sim"}},
+    {"scene", {"sim"}},          {"clock", {"sim"}},         {"command_timeout", {"sim", "serial"}},
     {"ifname", {"socketcan"}},   {"fd", {"socketcan"}},      {"bitrate", {"socketcan"}},
     {"data_bitrate", {"socketcan"}}, {"max_load", {"socketcan", "serial"}},
     {"device", {"serial"}},      {"baud", {"serial"}},       {"return_delay", {"serial"}},
@@ -462,7 +462,7 @@ TEST(BadInputs, DriverKeysOfAnotherTypeAreRefused) {
       EXPECT_EQ(e, "bad.yaml:4:" + std::to_string(5 + key.size()) + ": " + k.path + " = " + shown(k.good) +
                        ": expected no " + key + " with type: " + type + " (" + key + " is the " + owner + ")");
     }
-    if (!types.count("socketcan") && !types.count("serial")) continue;
+    if (types.count("sim") || (!types.count("socketcan") && !types.count("serial"))) continue;
     // The default type is sim: said so.
     const std::string e = daemon_error("driver:\n  scene: ../scenes/flat_high_friction.yaml\n  " + key + ": " +
                                        k.good + "\n");

@@ -179,3 +179,91 @@ TEST(Dynamixel, RegisterBlocksRoundTrip) {
     EXPECT_EQ(g.echo, f.echo);
   }
 }
+
+// Read and Write as the e-Manual's Protocol 2.0 examples, byte for byte (no npm package
+// implementing Protocol 2.0 from ROBOTIS exists to test against: `npm view dynamixel` is a 404).
+TEST(Dynamixel, ReadAndWriteMatchTheEManualExamples) {
+  std::array<std::uint8_t, 32> out{};
+  std::size_t n = 0;
+  // READ ID 1, Present Position (132), 4 bytes.
+  ASSERT_EQ(dxl::build_read(1, 132, 4, out, n), DxlStatus::kOk);
+  const std::uint8_t read[] = {0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x07, 0x00,
+                               0x02, 0x84, 0x00, 0x04, 0x00, 0x1D, 0x15};
+  ASSERT_EQ(n, sizeof read);
+  EXPECT_EQ(std::memcmp(out.data(), read, n), 0);
+  // WRITE ID 1, Goal Position (116) = 512.
+  const std::uint8_t value[] = {0x00, 0x02, 0x00, 0x00};
+  ASSERT_EQ(dxl::build_write(1, 116, value, out, n), DxlStatus::kOk);
+  const std::uint8_t write[] = {0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x09, 0x00, 0x03,
+                                0x74, 0x00, 0x00, 0x02, 0x00, 0x00, 0xCA, 0x89};
+  ASSERT_EQ(n, sizeof write);
+  EXPECT_EQ(std::memcmp(out.data(), write, n), 0);
+}
+
+// The control table's access rules, by the table alone.
+TEST(Dynamixel, ControlTableRules) {
+  bool eeprom = false;
+  // Reads: any range inside the table without a write-only byte; gaps read as 0.
+  EXPECT_EQ(dxl::check_read(0, 12), 0);
+  EXPECT_EQ(dxl::check_read(dxl::kRegFeedback, dxl::kFeedbackBlockSize), 0);
+  EXPECT_EQ(dxl::check_read(dxl::kRegCommand, dxl::kCommandBlockSize), 0);
+  EXPECT_EQ(dxl::check_read(1, 1), 0);  // half a register is readable
+  EXPECT_EQ(dxl::check_read(dxl::kRegSyncCounter, 1), dxl::kErrAccess);
+  EXPECT_EQ(dxl::check_read(130, 6), dxl::kErrAccess);
+  EXPECT_EQ(dxl::check_read(0, 0), dxl::kErrDataLength);
+  // Writes: whole writable registers, values in range.
+  const std::uint8_t cmd[dxl::kCommandBlockSize] = {};
+  EXPECT_EQ(dxl::check_write(dxl::kRegCommand, cmd, eeprom), 0);
+  EXPECT_FALSE(eeprom);
+  const std::uint8_t ee[] = {1, 6, 10, 0x2C, 0x01};  // ID, baud, return delay, command timeout
+  EXPECT_EQ(dxl::check_write(dxl::kRegId, ee, eeprom), 0);
+  EXPECT_TRUE(eeprom);
+  const std::uint8_t one[] = {1}, two[] = {1, 0}, big[] = {253};
+  EXPECT_EQ(dxl::check_write(dxl::kRegModelNumber, two, eeprom), dxl::kErrAccess);
+  EXPECT_EQ(dxl::check_write(dxl::kRegHardwareError, one, eeprom), dxl::kErrAccess);
+  EXPECT_EQ(dxl::check_write(3, one, eeprom), dxl::kErrAccess);  // gap
+  EXPECT_EQ(dxl::check_write(dxl::kRegCommandTimeout, one, eeprom), dxl::kErrDataLength);
+  EXPECT_EQ(dxl::check_write(dxl::kRegCommand + 1, two, eeprom), dxl::kErrDataLength);
+  EXPECT_EQ(dxl::check_write(dxl::kRegId, big, eeprom), dxl::kErrDataRange);
+  EXPECT_EQ(dxl::check_write(dxl::kRegTorqueEnable, two, eeprom), dxl::kErrAccess);  // 65: gap
+  EXPECT_EQ(dxl::check_write(134, two, eeprom), dxl::kErrAccess);
+  // Every register row lies inside the table, in order, without overlap.
+  std::uint16_t end = 0;
+  for (const dxl::Register& r : dxl::kRegisters) {
+    if (r.size == 0) continue;
+    EXPECT_GE(r.address, end) << r.name;
+    end = static_cast<std::uint16_t>(r.address + r.size);
+    EXPECT_EQ(dxl::register_at(r.address), &r);
+  }
+  EXPECT_EQ(end, dxl::kTableSize);
+  EXPECT_EQ(dxl::baud_of_index(dxl::baud_index(4'000'000)), 4'000'000);
+  EXPECT_EQ(dxl::baud_index(500'000), -1);
+}
+
+// The X-series' units (XM430-W350 e-Manual): 4096 counts per revolution, 0.229 rev/min, 2.69 mA.
+TEST(DynamixelX, FeedbackUnitsAndGoalCurrent) {
+  namespace x = dxl::x;
+  std::uint8_t raw[x::kFeedbackSize];
+  pd::wire::put_i16(raw, -100);                                        // −269 mA
+  pd::wire::put_u32(raw + 2, static_cast<std::uint32_t>(-262));        // −60 rev/min
+  pd::wire::put_u32(raw + 6, 1024);                                    // a quarter turn
+  x::ServoFeedback f{};
+  x::decode_servo_feedback(raw, x::kCurrentLsbXM430, f);
+  EXPECT_NEAR(f.current, -0.269, 1e-12);
+  EXPECT_NEAR(f.velocity, -262 * 0.229 * 2 * M_PI / 60, 1e-9);
+  EXPECT_NEAR(f.velocity, -2 * M_PI, 0.01);  // ≈ −1 rev/s
+  EXPECT_NEAR(f.position, M_PI / 2, 1e-12);
+  // Goal Current: 1 N·m through k_t = 1.78 N·m/A is 0.562 A = 209 counts; the limit saturates.
+  std::uint8_t flags = 0;
+  EXPECT_EQ(x::goal_current(1.0, 1.78, x::kCurrentLsbXM430, 1193, flags), 209);
+  EXPECT_EQ(flags, 0);
+  EXPECT_EQ(x::goal_current(-100.0, 1.78, x::kCurrentLsbXM430, 1193, flags), -1193);
+  EXPECT_EQ(flags, pd::wire::kQuantClamped);
+  flags = 0;
+  EXPECT_EQ(x::goal_current(std::nan(""), 1.78, x::kCurrentLsbXM430, 1193, flags), 0);
+  EXPECT_EQ(flags, pd::wire::kQuantNotFinite);
+  // The feedback read spans Present Current … Present Position, as the e-Manual's addresses.
+  EXPECT_EQ(x::kRegPresentVelocity, x::kRegPresentCurrent + 2);
+  EXPECT_EQ(x::kRegPresentPosition, x::kRegPresentVelocity + 4);
+  EXPECT_EQ(x::kFeedbackAddress + x::kFeedbackSize, x::kRegPresentPosition + 4u);
+}

@@ -89,11 +89,29 @@ struct BusTimingConfig {
   double bitrate = 1e6;           // CAN nominal bit rate [bit/s]
   double data_bitrate = 5e6;      // CAN FD data-phase bit rate [bit/s]
   int baud = 4'000'000;           // serial [bit/s], 8N1 (10 bits per byte)
-  double return_delay_s = 20e-6;  // serial: each module's status return delay [s]
+  double return_delay_s = 20e-6;  // serial: each module's initial status return delay [s]
+                                  // (register 9, 2 µs steps, at most 508 µs)
+  // serial: a packet still incomplete this long after its last byte is dropped (its LEN was too
+  // long, or the line broke mid-packet) [ns]
+  std::int64_t inter_byte_timeout_ns = 1'000'000;
+};
+
+// What sits on the serial bus: pedalwave modules (PROTOCOL.md §3.2), or per joint a stock
+// X-series servo in current control (ID j + 1, §3.6) and a deflection sensor (ID j + 1 + offset).
+enum class SerialDevices : std::uint8_t { kPedalwave = 0, kXSeries };
+struct XSeriesConfig {
+  std::uint16_t model = 1020;         // the servos' model number (XM430-W350) [-]
+  double torque_constant = 1.78;      // output torque per current [N·m/A] (XM430-W350 at 12 V:
+                                      // 4.1 N·m stall at 2.3 A)
+  double current_lsb = 2.69e-3;       // Goal / Present Current LSB [A]
+  std::uint16_t current_limit = 1193; // register 38 [LSB]
+  int sensor_id_offset = 100;         // sensor ID = servo ID + this [-]
 };
 
 struct EmulatorConfig {
   int joints = 5;                                 // modules, nodes/IDs 1…joints [-]
+  SerialDevices serial_devices = SerialDevices::kPedalwave;
+  XSeriesConfig x{};
   bool fd = false;                                // CAN: FD frame set (command groups, FD replies)
   std::int64_t command_timeout_ns = 500'000'000;  // command lifetime [ns] (> the host's stale_timeout)
   BusTimingConfig bus{};
@@ -111,7 +129,10 @@ void spread_module_clocks(EmulatorConfig& cfg, double drift_ppm, std::uint32_t s
 // Counters of the emulated side (read from any thread).
 struct EmulatorStats {
   std::atomic<std::uint64_t> syncs{0};           // SYNCs handled [-]
-  std::atomic<std::uint64_t> replies_sent{0};    // feedback frames / status packets sent [-]
+  std::atomic<std::uint64_t> replies_sent{0};    // feedback frames / the cycle's status packets
+                                                 // (answers to Sync / Bulk Read) sent [-]
+  std::atomic<std::uint64_t> other_replies{0};   // serial: status packets answering anything else
+                                                 // (Ping, Read, Write, errors: configuration) [-]
   std::atomic<std::uint64_t> replies_dropped{0}; // not sent because of injected loss/silence [-]
   std::atomic<std::uint64_t> replies_corrupted{0};  // sent with an injected bit error [-]
   std::atomic<std::uint64_t> commands{0};        // valid command frames / blocks latched [-]
@@ -148,6 +169,10 @@ class ModuleBank {
   void latch(int j, double tau, double beta_ref, double beta_dot_ref, bool has_gains, double kp,
              double kd, bool torque_off, std::uint8_t tag, std::int64_t t_ns) noexcept;
   void latch_gains(int j, double kp, double kd) noexcept;
+  // Module j's command lifetime from now on [ns]; 0 = never expires (the serial modules' register
+  // 10). Starts at EmulatorConfig::command_timeout_ns.
+  void set_command_timeout(int j, std::int64_t ns) noexcept;
+  std::int64_t command_timeout_ns(int j) const { return timeout_ns_[static_cast<std::size_t>(j)]; }
   // Between SYNCs (the front ends call it every loop turn, ≤ 1 ms apart): the world does not
   // wait for a stalled host. Once the SYNC is overdue (2 of its intervals since the plant last
   // moved) and while the modules still hold a command (within its lifetime of the last SYNC, and
@@ -212,6 +237,7 @@ class ModuleBank {
   Feedback sample_{};
   Command latched_{};                      // latest command per joint (applied at SYNC)
   std::array<std::int64_t, kMaxJoints> last_cmd_ns_{};
+  std::array<std::int64_t, kMaxJoints> timeout_ns_{};  // command lifetime per module (0: never) [ns]
   std::array<bool, kMaxJoints> have_cmd_{};
   std::array<bool, kMaxJoints> off_{};      // joint is torque-off
   std::array<bool, kMaxJoints> cmd_off_{};  // latched command says torque-off
@@ -274,7 +300,22 @@ class CanModuleEmulator {
   bool blocked_ = false;  // the last send found the transport full
 };
 
-// Serial (DYNAMIXEL 2.0) front end on a pty master or a tty.
+// Serial (DYNAMIXEL 2.0) front end on a pty master or a tty. Each module has the control table of
+// PROTOCOL.md §3.2 (dxl::kRegisters) and answers as a DYNAMIXEL does:
+//  - Ping; Read and Write of any range within the table (dxl::check_read / check_write: access,
+//    length and range errors; the EEPROM area only while torque enable = 0, else kErrAccess);
+//    Sync Read / Sync Write and Bulk Read / Bulk Write of any range; Reboot (the RAM area back to
+//    its initial values, torque off). Factory Reset, Reg Write, Action, Clear, Control Table
+//    Backup, Fast Sync Read, Fast Bulk Read and unknown instructions: kErrInstruction (unicast; for
+//    the fast reads the first listed module answers it).
+//  - Status return level (register 68): 0 answers Ping only, 1 also the reads, 2 everything;
+//    broadcast Read/Write never answered. Every status packet carries the alert bit while the
+//    Hardware Error Status (register 70: over-temperature, encoder fault) is non-zero.
+//  - The SYNC is any write of the sync counter (register 96): on_sync for the whole bank.
+//  - A write touching the command block latches the block; writing torque enable = 0 turns the
+//    output off at once; register 10 sets the command lifetime, register 9 the return delay.
+//  - A CRC failure resynchronizes on the next byte; a packet still incomplete after
+//    BusTimingConfig::inter_byte_timeout_ns of silence is dropped (both counted in rx_errors).
 class SerialModuleEmulator {
  public:
   SerialModuleEmulator(int fd, const EmulatorConfig& cfg, ModulePlant& plant);
@@ -287,13 +328,35 @@ class SerialModuleEmulator {
     std::int64_t due_ns = 0;   // send time, CLOCK_MONOTONIC [ns]
     std::size_t len = 0;       // bytes still to send [bytes]
     std::size_t off = 0;       // bytes already sent [bytes]
-    std::array<std::uint8_t, 64> bytes{};
+    bool feedback = false;     // an answer to the cycle's Sync / Bulk Read [-]
+    std::array<std::uint8_t, 256> bytes{};  // a status packet of the whole table: 191 bytes
   };
+  enum class Kind : std::uint8_t { kPing, kRead, kOther };  // for the status return level
   void handle(std::int64_t now) noexcept;
-  void enqueue(std::int64_t due, const std::uint8_t* p, std::size_t n) noexcept;
+  void enqueue(std::int64_t due, const std::uint8_t* p, std::size_t n, bool feedback) noexcept;
   void process(std::int64_t now) noexcept;
   void flush(std::int64_t now) noexcept;
   std::int64_t bytes_ns(std::size_t n) const noexcept;  // wire time of n bytes [ns]
+  // The control table.
+  // Devices d: 0 … joints − 1 the modules (or X-series servos) of joint d; kMaxJoints + j the
+  // deflection sensor of joint j (X-series bus only).
+  static constexpr int kSensor = kMaxJoints;
+  int joint_of(std::uint8_t id) const noexcept;  // the device answering to `id`, -1: none
+  std::span<const dxl::Register> registers(int d) const noexcept;
+  std::uint16_t table_size(int d) const noexcept;
+  void refresh(int d) noexcept;                  // live registers (torque, errors, feedback)
+  std::uint8_t read_table(int d, std::uint16_t addr, std::uint16_t len) noexcept;  // → reply_
+  std::uint8_t write_table(int d, std::uint16_t addr, std::span<const std::uint8_t> data,
+                           std::int64_t now) noexcept;
+  void latch_block(int j, bool off, std::int64_t now) noexcept;
+  void latch_servo(int j, std::int64_t now) noexcept;  // X-series: goal current → torque
+  void reset_ram(int d) noexcept;
+  void sample_now(std::int64_t now) noexcept;  // X-series: a read samples (no sync counter)
+  // Module j's status packet (error | alert, params) after its return delay, if its status return
+  // level answers `kind`; `cycle`: the cycle's Sync / Bulk Read (loss, bit errors, latency
+  // apply; counted in replies_sent, the rest in other_replies).
+  void answer(int j, std::uint8_t err, std::span<const std::uint8_t> params, Kind kind,
+              std::int64_t now, bool cycle) noexcept;
 
   int fd_;
   ModuleBank bank_;
@@ -302,6 +365,12 @@ class SerialModuleEmulator {
   std::array<std::uint8_t, 4096> rx_{};
   dxl::Packet pkt_{};
   std::size_t rx_len_ = 0;
+  std::int64_t last_rx_ns_ = 0;   // when the last byte arrived [ns]
+  bool resync_ = false;           // skipping the rest of a packet that failed its CRC
+  bool x_ = false;                // an X-series bus
+  std::uint8_t x_syncs_ = 0;      // the X-series bus's sample counter [-]
+  std::array<std::array<std::uint8_t, dxl::x::kTableSize>, 2 * kMaxJoints> table_{};
+  std::array<std::uint8_t, dxl::x::kTableSize> reply_{};
   std::array<Pending, 256> queue_{};
   std::size_t head_ = 0, tail_ = 0;
   bool blocked_ = false;  // the last write found the line full

@@ -28,6 +28,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "pedalwave/drivers/dynamixel.hpp"
 #include "pedalwave/drivers/io.hpp"
@@ -46,6 +47,14 @@ struct SerialConfig {
   double turnaround_s = 0.0;            // host turnaround per exchange, for the budget check [s]
   double max_load = 0.8;                // admissible bus occupation per cycle [-]
   std::int64_t write_timeout_ns = 200'000;  // longest write() waits for a full output queue [ns]
+  // The modules' command lifetime, written to their register 10 at configuration [s] (1 ms steps)
+  double command_timeout_s = 0.5;
+};
+
+// What configure_modules() found on module j (joint j + 1, ID j + 1).
+struct ModuleIdentity {
+  std::uint16_t model = 0;     // model number (register 0) [-]
+  std::uint8_t firmware = 0;   // firmware version (register 2) [-]
 };
 
 // The baud rates a port opens at (termios' standard rates) [bit/s]: open_serial_port refuses any
@@ -63,13 +72,22 @@ int open_serial_port(const std::string& path, int baud);
 
 class SerialDriver final : public Driver {
  public:
-  // Checks the bus budget, opens cfg.device.
+  // Checks the bus budget, opens cfg.device, configure_modules().
   static std::unique_ptr<SerialDriver> open(const SerialConfig& cfg);
   // Injected transport (a pty slave, a tty opened elsewhere): takes ownership of fd.
   SerialDriver(int fd, const SerialConfig& cfg);
   ~SerialDriver() override;
   SerialDriver(const SerialDriver&) = delete;
   SerialDriver& operator=(const SerialDriver&) = delete;
+
+  // Configuration (before the loop; allocates, throws): every module, by unicast Read / Write
+  // (PROTOCOL.md §3.4): identified (model number 0x5057, firmware), its ID (7) and baud rate (8)
+  // checked against the configuration, its Hardware Error Status (70) zero, torque off (64),
+  // then its return delay (9) and command timeout (10) written and read back. A module that does
+  // not answer or disagrees stops it: std::runtime_error naming the module (ID, joint), the
+  // register, the value found and the value expected. reply_timeout_ns per try, 3 tries.
+  void configure_modules(std::int64_t reply_timeout_ns = 50'000'000);
+  const ModuleIdentity& identity(int j) const { return identity_[static_cast<std::size_t>(j)]; }
 
   int joints() const override { return joints_; }
   IoStatus read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback& out) override;
@@ -86,6 +104,17 @@ class SerialDriver final : public Driver {
   void handle_status(const dxl::Packet& p, std::int64_t stamp_ns) noexcept;
   bool send_commands(const Command* cmd, bool all_off, std::int64_t until_ns) noexcept;
   void poll_overruns() noexcept;
+  // One unicast request and its status packet from `id` (false: none within timeout_ns).
+  bool transact(const std::uint8_t* p, std::size_t n, std::uint8_t id, std::int64_t timeout_ns);
+  std::vector<std::uint8_t> read_registers(int j, std::uint16_t addr, std::uint16_t len,
+                                           std::int64_t timeout_ns);
+  void write_registers(int j, std::uint16_t addr, const std::vector<std::uint8_t>& data,
+                       std::int64_t timeout_ns);
+
+  int baud_ = 0;
+  std::uint8_t return_delay_steps_ = 0;  // return delay to set [2 µs]
+  std::uint16_t command_timeout_ms_ = 0; // command lifetime to set [ms]
+  std::array<ModuleIdentity, kMaxJoints> identity_{};
 
   int fd_ = -1;
   int joints_ = 0;

@@ -226,6 +226,9 @@ bool FaultObserver::check_joint(const Feedback& fb, int j, double t, double dt) 
   const std::uint16_t st = fb.status[k];
   // Missing: the module did not answer this cycle (values are the driver's stale copy).
   if (st & drivers::kStatusMissing) {
+    // Every module missing at once (a stalled host, a cut link) isolates no module: the run is
+    // held, neither counted nor reset, and the runtime's stale_timeout judges the link.
+    if (link_silent_) return false;
     ++s.missing_run;
     s.missing_s += dt;
     // With a time window, the count must be reached too: one unanswered request that spans a host
@@ -716,6 +719,9 @@ int FaultObserver::observe(const Feedback& fb, const CommandHistory& cmds, doubl
   check_frame(fb, t);
   const int J = std::min(joints_, fb.joints);
   bool all_ok = frame_ok_ && J == joints_;
+  link_silent_ = J > 1;
+  for (int j = 0; j < J && link_silent_; ++j)
+    link_silent_ = (fb.status[static_cast<std::size_t>(j)] & drivers::kStatusMissing) != 0;
   for (int j = 0; j < J; ++j) {
     const auto k = static_cast<std::size_t>(j);
     Joint& s = jt_[k];

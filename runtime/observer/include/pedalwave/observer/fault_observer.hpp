@@ -247,6 +247,8 @@ class FaultObserver {
   bool have_prev_frame_ = false;
   std::uint64_t prev_seq_ = 0;
   bool frame_ok_ = true;               // this frame may feed the residuals
+  bool link_silent_ = false;           // this cycle every joint (of ≥ 2) is missing: the link's
+                                       // or the host's silence, not a module's (runtime: stale_data)
   std::uint64_t frame_stale_hist_ = 0;  // repeated/backward seq, last stale_window cycles (bits)
   // Latched faults
   std::array<FaultRecord, 2 * kMaxJoints + 2> latched_{};

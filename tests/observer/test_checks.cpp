@@ -159,21 +159,24 @@ TEST(Checks, EveryModuleMissingAtOnceIsTheLinkNotModuleOne) {
   pw::drivers::Command cmd{};
   double t = 0;
   std::uint64_t k = 0;
-  auto step = [&](bool all, int joint) {
+  // joint: the one module missing, or kNone with all = false (everyone answers).
+  constexpr std::size_t kNone = pw::drivers::kMaxJoints;
+  auto step = [&](bool all, std::size_t joint) {
     t += p.period;
     frame(fb, k++, p.period);
-    for (int j = 0; j < fb.joints; ++j)
-      if (all || j == joint) fb.status[static_cast<std::size_t>(j)] |= pw::drivers::kStatusMissing;
+    const auto n = static_cast<std::size_t>(fb.joints);
+    for (std::size_t j = 0; j < n && j < fb.status.size(); ++j)
+      if (all || j == joint) fb.status[j] |= pw::drivers::kStatusMissing;
     o.observe(fb, cmd, t, p.period);
   };
-  for (int i = 0; i < 50; ++i) step(false, -1);
+  for (int i = 0; i < 50; ++i) step(false, kNone);
   ASSERT_GE(fb.joints, 2);
-  for (int i = 0; i < 60; ++i) step(true, -1);  // 0.6 s: every module missing
+  for (int i = 0; i < 60; ++i) step(true, kNone);  // 0.6 s: every module missing
   EXPECT_EQ(o.fault_count(), 0) << "a silent link named module " << o.faults()[0].joint;
-  for (int i = 0; i < 50; ++i) step(false, -1);
+  for (int i = 0; i < 50; ++i) step(false, kNone);
   // Module 3 alone: 0.1 s, then everything 0.5 s, then module 3 alone again.
   for (int i = 0; i < 10; ++i) step(false, 3);
-  for (int i = 0; i < 50; ++i) step(true, -1);
+  for (int i = 0; i < 50; ++i) step(true, kNone);
   EXPECT_FALSE(silent_latched(o, 3)) << "the link's silence counted for module 3";
   int n = 0;
   for (; n < 30 && !silent_latched(o, 3); ++n) step(false, 3);

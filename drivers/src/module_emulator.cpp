@@ -249,6 +249,15 @@ void ModuleBank::on_turn(std::int64_t now_ns) noexcept {
   last_turn_ns_ = now_ns;
 }
 
+std::int64_t ModuleBank::take_thread_stall() noexcept {
+  const FaultConfig& f = cfg_.faults;
+  if (f.thread_stall_ns <= 0 || f.stall_first_sync == 0) return 0;
+  if (next_stall_sync_ == 0) next_stall_sync_ = f.stall_first_sync;
+  if (syncs_ < next_stall_sync_) return 0;
+  next_stall_sync_ = f.stall_every_syncs > 0 ? syncs_ + f.stall_every_syncs : ~std::uint64_t{0};
+  return f.thread_stall_ns;
+}
+
 void ModuleBank::latch(int j, double tau, double beta_ref, double beta_dot_ref, bool has_gains,
                        double kp, double kd, bool torque_off, std::uint8_t tag,
                        std::int64_t t_ns) noexcept {
@@ -306,6 +315,7 @@ void CanModuleEmulator::run(const std::atomic<bool>& stop) {
     std::int64_t now = detail::monotonic_ns();
     const std::int64_t due = head_ != tail_ ? queue_[head_].due_ns : 0;
     const short ev = wait_input(fd_, now, due, blocked_ && head_ != tail_);
+    if (const std::int64_t held = bank_.take_thread_stall(); held > 0) sleep_ns(held);
     bank_.on_turn(detail::monotonic_ns());
     bool got = false;
     for (;;) {
@@ -544,6 +554,7 @@ void SerialModuleEmulator::run(const std::atomic<bool>& stop) {
     std::int64_t now = detail::monotonic_ns();
     const std::int64_t due = head_ != tail_ ? queue_[head_].due_ns : 0;
     const short ev = wait_input(fd_, now, due, blocked_ && head_ != tail_);
+    if (const std::int64_t held = bank_.take_thread_stall(); held > 0) sleep_ns(held);
     bank_.on_turn(detail::monotonic_ns());
     bool got = false;
     for (;;) {

@@ -129,7 +129,6 @@ SerialDriver::SerialDriver(int fd, const SerialConfig& cfg)
                              n) != dxl::DxlStatus::kOk)
       throw std::invalid_argument("SerialDriver: cannot build the Sync Read packet");
     sync_read_len_ = n;
-    seq_of_tag_.fill(kNoCommandSeq);
     sync_wire_ns_ = std::llround(13 * 10.0 * 1e9 / cfg.baud);  // the 13-byte sync-counter write
   } catch (...) {
     if (fd >= 0) ::close(fd);
@@ -388,6 +387,7 @@ void SerialDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns) no
   }
   dxl::FeedbackBlock fb{};
   dxl::decode_feedback_block(p.params.data(), fb);
+  const std::uint64_t answered = track_[ju].take(fb.echo, 256, cycle_);
   FrameAge age = classify_frame(rc_[ju], fb.echo, counter_, cycle_, 256);
   if (age == FrameAge::kFresh && stamp_ns > deadline_ns_) {
     rc_[ju].fresh = false;
@@ -398,6 +398,8 @@ void SerialDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns) no
       last_[ju] = fb;
       ++fresh_count_;
       if (stamp_ns > stamp_ns_) stamp_ns_ = stamp_ns;
+      fresh_answered_[ju] = answered;
+      fresh_sure_[ju] = track_[ju].sure() && answered == cycle_;
       break;
     case FrameAge::kDuplicate:
       ++counters_.duplicate;
@@ -406,7 +408,8 @@ void SerialDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns) no
     case FrameAge::kLate:
       ++counters_.late;
       status_[ju] |= kStatusLate;
-      late_[ju].offer_values(fb.echo, fb.beta, fb.beta_dot, fb.deflection, fb.status);
+      late_[ju].offer_values(fb.echo, answered, track_[ju].sure() && answered != 0, fb.beta,
+                             fb.beta_dot, fb.deflection, fb.status);
       late_[ju].offer_timing(fb.echo, fb.timing);
       break;
     case FrameAge::kOutOfOrder:
@@ -458,7 +461,7 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
   // Close the gap between the two packets (the Sync Read was built at offset 16).
   std::memmove(sync_tx_.data() + n, sync_tx_.data() + 16, sync_read_len_);
   sync_lower_ns_ = detail::monotonic_ns() + sync_wire_ns_;
-  sync_lower_of_[counter_] = sync_lower_ns_;
+  log_.sync(cycle_, sync_lower_ns_);
   const bool sent = write_all(sync_tx_.data(), n + sync_read_len_, deadline_ns);
   std::memmove(sync_tx_.data() + 16, sync_tx_.data() + n, sync_read_len_);
   if (sent) {
@@ -492,22 +495,25 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
     std::uint16_t st = status_[ju];
     out.sample_ns[ju] = 0;
     out.late_applied_ns[ju] = 0;
-    if (late_[ju].have_timing && clocks_[ju].started() && !late_[ju].timing.no_command) {
-      const wire::ModuleTiming& lt = late_[ju].timing;
-      out.late_applied_ns[ju] = applied_host_ns(lt, clocks_[ju]);
-      out.late_applied_seq[ju] = seq_of_tag_[lt.applied_tag];
-    }
     ModuleClock& clk = clocks_[ju];
     const LateSample& late = late_[ju];
+    // A late record (its values not used) tells when the module applied which command (placed
+    // for sure among the host's cycles).
+    if (late.complete() && late.sure && clk.started() && !late.timing.no_command) {
+      out.late_applied_ns[ju] = applied_host_ns(late.timing, clk);
+      out.late_applied_seq[ju] = log_.applied(late.answered, late.timing.applied_tag, 256);
+      if (out.late_applied_seq[ju] == kUnknownSeq) out.late_applied_ns[ju] = 0;
+    }
     if (rc_[ju].fresh) {
-      hand_out(last_[ju].timing, sync_lower_ns_, seq_of_tag_, 0xFFu, clk, handed_[ju], out, ju);
+      hand_out(last_[ju].timing, log_, fresh_answered_[ju], fresh_sure_[ju], 256, clk, handed_[ju],
+               out, ju);
     } else if (late.complete() && handed_[ju].newer(late.timing.sample_us)) {
       // No fresh answer, but a late one: an older sample at its own (module) time. It updates the
       // clock with the lower bound of the SYNC it answered.
       const wire::ModuleTiming& t = late.timing;
       last_[ju] = dxl::FeedbackBlock{late.beta, late.beta_dot, late.deflection, late.status,
                                      late.values_echo, t};
-      hand_out(t, sync_lower_of_[late.values_echo], seq_of_tag_, 0xFFu, clk, handed_[ju], out, ju);
+      hand_out(t, log_, late.answered, late.sure, 256, clk, handed_[ju], out, ju);
       out.late_applied_ns[ju] = 0;
       ++counters_.late_used;
       ++late_used;
@@ -515,6 +521,7 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
       st |= kStatusMissing;
       ++counters_.missing;
     }
+    track_[ju].end_cycle(cycle_, rc_[ju].fresh);
     const dxl::FeedbackBlock& fb = last_[ju];
     out.beta[ju] = fb.beta;
     out.beta_dot[ju] = fb.beta_dot;
@@ -528,7 +535,7 @@ IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, F
 }
 
 bool SerialDriver::send_commands(const Command* cmd, bool all_off, std::int64_t until_ns) noexcept {
-  if (cmd) seq_of_tag_[counter_] = cmd->seq;
+  if (cmd) log_.command(cycle_, cmd->seq);
   for (int j = 0; j < joints_; ++j) {
     const auto ju = static_cast<std::size_t>(j);
     dxl::CommandBlock b{};

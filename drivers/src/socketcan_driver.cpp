@@ -116,7 +116,6 @@ SocketCanDriver::SocketCanDriver(int fd, const SocketCanConfig& cfg)
     // Kernel receive timestamps also work on AF_UNIX sockets; harmless if refused.
     const int one = 1;
     (void)::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one);
-    seq_of_tag_.fill(kNoCommandSeq);
     sync_wire_ns_ = std::llround(can_classic_frame_bits(2) / cfg.bitrate * 1e9);
   } catch (...) {
     if (fd >= 0) ::close(fd);
@@ -307,6 +306,8 @@ void SocketCanDriver::handle_feedback_fd(const canfd_frame& f, std::int64_t stam
 void SocketCanDriver::take_feedback(int j, const can::ModuleFeedback& fb,
                                     const wire::ModuleTiming* t, std::int64_t stamp_ns) noexcept {
   const auto ju = static_cast<std::size_t>(j);
+  const unsigned modulus = fd_mode_ ? 256u : 16u;
+  const std::uint64_t answered = track_[ju].take(fb.counter, modulus, cycle_);
   FrameAge age = classify_frame(rc_[ju], fb.counter, sync_counter_, cycle_, 16);
   if (age == FrameAge::kFresh && stamp_ns > deadline_ns_) {
     // The answer to this SYNC, but received after the cycle's deadline: not used.
@@ -318,6 +319,8 @@ void SocketCanDriver::take_feedback(int j, const can::ModuleFeedback& fb,
       last_[ju] = fb;
       ++fresh_count_;
       if (stamp_ns > stamp_ns_) stamp_ns_ = stamp_ns;
+      fresh_answered_[ju] = answered;
+      fresh_sure_[ju] = track_[ju].sure() && answered == cycle_;
       if (t) {
         timing_[ju] = *t;
         have_timing_[ju] = true;
@@ -330,7 +333,8 @@ void SocketCanDriver::take_feedback(int j, const can::ModuleFeedback& fb,
     case FrameAge::kLate:
       ++counters_.late;
       status_[ju] |= kStatusLate;
-      late_[ju].offer_values(fb.counter, fb.beta, fb.beta_dot, fb.deflection, fb.status);
+      late_[ju].offer_values(fb.counter, answered, track_[ju].sure() && answered != 0, fb.beta,
+                             fb.beta_dot, fb.deflection, fb.status);
       if (t) late_[ju].offer_timing(fb.counter, *t);
       break;
     case FrameAge::kOutOfOrder:
@@ -389,7 +393,7 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
   can::encode_sync(sync_counter_, sync);
   bool dropped = false, down = false;
   sync_lower_ns_ = detail::monotonic_ns() + sync_wire_ns_;
-  sync_lower_of_[sync_counter_ & can::kClassicCounterMask] = sync_lower_ns_;  // echoes: 4 bits
+  log_.sync(cycle_, sync_lower_ns_);
   note_tx(send_classic(sync), dropped, down);
 
   // Until every joint has its fresh feedback (and, on a classic bus, its timing frame).
@@ -420,26 +424,28 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
     std::uint16_t st = status_[ju];
     out.sample_ns[ju] = 0;
     out.late_applied_ns[ju] = 0;
-    const unsigned tag_mask = fd_mode_ ? 0xFFu : can::kClassicCounterMask;
-    if (late_[ju].have_timing && clocks_[ju].started() && !late_[ju].timing.no_command) {
-      const wire::ModuleTiming& lt = late_[ju].timing;
-      out.late_applied_ns[ju] = applied_host_ns(lt, clocks_[ju]);
-      out.late_applied_seq[ju] = seq_of_tag_[lt.applied_tag & tag_mask];
-    }
+    const unsigned modulus = fd_mode_ ? 256u : 16u;
     ModuleClock& clk = clocks_[ju];
     const LateSample& late = late_[ju];
+    // A late record (its values not used) tells when the module applied which command; only
+    // with its values (the SYNC it answered, placed) and placed for sure.
+    if (late.complete() && late.sure && clk.started() && !late.timing.no_command) {
+      out.late_applied_ns[ju] = applied_host_ns(late.timing, clk);
+      out.late_applied_seq[ju] = log_.applied(late.answered, late.timing.applied_tag, modulus);
+      if (out.late_applied_seq[ju] == kUnknownSeq) out.late_applied_ns[ju] = 0;
+    }
     if (rc_[ju].fresh && !have_timing_[ju]) {
       st |= kStatusNoTiming;
     } else if (rc_[ju].fresh) {
-      hand_out(timing_[ju], sync_lower_ns_, seq_of_tag_, tag_mask, clk, handed_[ju], out, ju);
+      hand_out(timing_[ju], log_, fresh_answered_[ju], fresh_sure_[ju], modulus, clk, handed_[ju],
+               out, ju);
     } else if (late.complete() && handed_[ju].newer(late.timing.sample_us)) {
       // No fresh answer, but a late one (values and record of the same SYNC): an older sample at
       // its own module time. It updates the clock with the lower bound of the SYNC it answered.
       const wire::ModuleTiming& t = late.timing;
       last_[ju] = can::ModuleFeedback{late.beta, late.beta_dot, late.deflection, late.status,
                                       late.values_echo};
-      hand_out(t, sync_lower_of_[late.timing_echo & can::kClassicCounterMask], seq_of_tag_, tag_mask,
-               clk, handed_[ju], out, ju);
+      hand_out(t, log_, late.answered, late.sure, modulus, clk, handed_[ju], out, ju);
       out.late_applied_ns[ju] = 0;
       ++counters_.late_used;
       ++late_used;
@@ -448,6 +454,7 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
       ++counters_.missing;
     }
     if (bus_bad) st |= kStatusBusError;
+    track_[ju].end_cycle(cycle_, rc_[ju].fresh);
     const can::ModuleFeedback& fb = last_[ju];
     out.beta[ju] = fb.beta;
     out.beta_dot[ju] = fb.beta_dot;
@@ -482,7 +489,7 @@ IoStatus SocketCanDriver::write(const Command& cmd) {
   bool dropped = false, down = false;
   const std::uint8_t ctr = sync_counter_;
   // The modules will name this command by its tag: classic frames carry c mod 16, FD groups c.
-  seq_of_tag_[fd_mode_ ? ctr : (ctr & can::kClassicCounterMask)] = cmd.seq;
+  log_.command(cycle_, cmd.seq);
   if (!fd_mode_) {
     for (int j = 0; j < joints_; ++j) {
       const auto ju = static_cast<std::size_t>(j);

@@ -89,9 +89,11 @@ TEST(ModuleClock, ASaturatedApplicationAgeIsAnUnknownApplicationTime) {
   EXPECT_EQ(pd::applied_host_ns(t, clk), 0);
   pd::Feedback out;
   pd::HandedOut handed;
-  std::array<std::uint64_t, 256> seq_of_tag{};
-  seq_of_tag[0] = 41;
-  pd::hand_out(t, host + 10'000'000, seq_of_tag, 0xFF, clk, handed, out, 2);
+  pd::CycleLog log;
+  log.sync(256, host + 10'000'000);  // SYNC of cycle 256 (counter 0)
+  log.command(256, 41);              // its command, tag 0
+  log.sync(257, host + 10'000'000);
+  pd::hand_out(t, log, 257, true, 256, clk, handed, out, 2);
   EXPECT_GT(out.sample_ns[2], 0);
   EXPECT_EQ(out.applied_ns[2], 0) << "the observer does not place the command at the saturated age";
   EXPECT_EQ(out.applied_seq[2], 41u);

@@ -39,6 +39,10 @@ enum class FeedbackTiming : std::uint8_t {
 // Command::seq of "no command": a module that was never commanded (or whose command lifetime
 // expired) applies zero torque. CommandHistory::find() maps it to an all-off command.
 inline constexpr std::uint64_t kNoCommandSeq = ~0ull;
+// Command::seq of "a command, but which one is not known" (the module's answer could not be
+// placed among the host's cycles, answer_log.hpp): CommandHistory::find() has none, so the
+// observer integrates no interval in which it acts.
+inline constexpr std::uint64_t kUnknownSeq = ~0ull - 1;
 
 // One cycle's measurements, motor side only (model-spec.md §1): the driver never sees link angles.
 struct Feedback {

@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "pedalwave/drivers/answer_log.hpp"
 #include "pedalwave/drivers/io.hpp"
 #include "pedalwave/drivers/module_clock.hpp"
 #include "pedalwave/drivers/wire.hpp"
@@ -20,6 +21,8 @@ struct LateSample {
   double beta = 0.0, beta_dot = 0.0, deflection = 0.0;  // the late answer's values
   std::uint16_t status = 0;                              // its module StatusBits [-]
   std::uint8_t values_echo = 0;                          // SYNC counter it answered [-]
+  std::uint64_t answered = 0;                            // … as a host cycle (AnswerTrack) [-]
+  bool sure = false;                                     // … and whether that is certain
   bool have_values = false;
   wire::ModuleTiming timing{};                           // its timing record
   std::uint8_t timing_echo = 0;                          // SYNC counter of the record [-]
@@ -27,8 +30,10 @@ struct LateSample {
 
   void clear() noexcept { have_values = have_timing = false; }
   // A late frame's values (later frames overwrite: answers arrive in bus order, newest last).
-  void offer_values(std::uint8_t echo, double b, double bd, double d, std::uint16_t st) noexcept {
+  void offer_values(std::uint8_t echo, std::uint64_t cycle, bool certain, double b, double bd,
+                    double d, std::uint16_t st) noexcept {
     beta = b, beta_dot = bd, deflection = d, status = st, values_echo = echo, have_values = true;
+    answered = cycle, sure = certain;
   }
   void offer_timing(std::uint8_t echo, const wire::ModuleTiming& t) noexcept {
     timing = t, timing_echo = echo, have_timing = true;
@@ -55,15 +60,27 @@ inline std::int64_t applied_host_ns(const wire::ModuleTiming& t, const ModuleClo
   return t.applied_age_us >= wire::kAgeMaxUs ? 0 : clk.to_host(t.sample_us - t.applied_age_us);
 }
 
-// Joint j's sample in `out` from its timing record t (fresh or late): the sample time through
-// the module clock (updated with `lower_ns`, no module sampled before it: the SYNC it answered),
-// the command it applied last (tag & tag_mask → Command::seq) and when. Notes the time handed out.
-inline void hand_out(const wire::ModuleTiming& t, std::int64_t lower_ns,
-                     const std::array<std::uint64_t, 256>& seq_of_tag, unsigned tag_mask,
-                     ModuleClock& clk, HandedOut& handed, Feedback& out, std::size_t j) noexcept {
-  out.sample_ns[j] = clk.update(t.sample_us, lower_ns);
-  out.applied_ns[j] = applied_host_ns(t, clk);
-  out.applied_seq[j] = t.no_command ? kNoCommandSeq : seq_of_tag[t.applied_tag & tag_mask];
+// The command a module's record says it applied: Command::seq through the cycle log, for an
+// answer to SYNC `answered` whose placement is `sure` (kUnknownSeq if not; kNoCommandSeq: none).
+inline std::uint64_t applied_seq_of(const wire::ModuleTiming& t, const CycleLog& log,
+                                    std::uint64_t answered, bool sure, unsigned modulus) noexcept {
+  if (t.no_command) return kNoCommandSeq;
+  return sure ? log.applied(answered, t.applied_tag, modulus) : kUnknownSeq;
+}
+
+// Joint j's sample in `out` from its timing record t (fresh or late) answering SYNC `answered`
+// (AnswerTrack; `sure`: certainly that one): the sample time through the module clock — updated
+// with that SYNC's lower bound (no module sampled before it) only when sure; else mapped as the
+// clock stands — the command it applied last (tag → Command::seq, answer_log.hpp) and when.
+// Notes the time handed out.
+inline void hand_out(const wire::ModuleTiming& t, const CycleLog& log, std::uint64_t answered,
+                     bool sure, unsigned modulus, ModuleClock& clk, HandedOut& handed,
+                     Feedback& out, std::size_t j) noexcept {
+  const std::int64_t lower = sure ? log.sync_lower(answered) : 0;
+  if (lower != 0) out.sample_ns[j] = clk.update(t.sample_us, lower);
+  else out.sample_ns[j] = clk.started() ? clk.to_host(t.sample_us) : 0;
+  out.applied_ns[j] = clk.started() ? applied_host_ns(t, clk) : 0;
+  out.applied_seq[j] = applied_seq_of(t, log, answered, lower != 0, modulus);
   handed.take(t.sample_us);
 }
 

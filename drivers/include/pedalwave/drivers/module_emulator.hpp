@@ -80,6 +80,14 @@ struct FaultConfig {
   double bit_error = 0.0;             // probability that one payload bit of an answer is flipped [-]
   std::array<ModuleFault, kMaxJoints> module{};  // per joint, (N-1)
   std::uint64_t onset_sync = 1;       // faults act from this SYNC on (1 = the first) [-]
+  // The modules' thread is held for thread_stall_ns after it has handled stall_first_sync SYNCs,
+  // and again every stall_every_syncs SYNCs after that (0 = once): a machine that deschedules the
+  // modules while the host's loop runs on (the VM's starved vCPU). The host's frames queue in the
+  // meantime and are handled late, all at once, as the emulator answers them: a backlog of SYNCs.
+  // 0 = never [ns, -].
+  std::int64_t thread_stall_ns = 0;
+  std::uint64_t stall_first_sync = 0;
+  std::uint64_t stall_every_syncs = 0;
   std::uint32_t seed = 1;             // random generator seed [-]
 };
 
@@ -192,6 +200,9 @@ class ModuleBank {
   // clocks (which ran on) and the plant disagree by the span, and at 100 Hz a 30–50 ms machine
   // stall was an encoder_jump and a residual of 8–12 N·m (BusModel.AMachineStallAt100Hz…).
   void on_turn(std::int64_t now_ns) noexcept;
+  // How long the front end's thread must now be held (FaultConfig::thread_stall_ns), once per
+  // stall point; 0 = not now [ns].
+  std::int64_t take_thread_stall() noexcept;
   void end_turn(std::int64_t now_ns) noexcept { last_turn_ns_ = now_ns; }
   // After on_sync: the sample, the counter module j echoes and its timing record.
   const Feedback& sample() const { return sample_; }
@@ -223,6 +234,7 @@ class ModuleBank {
   EmulatorStats stats_;
   std::mt19937 rng_;
   std::uint64_t syncs_ = 0;
+  std::uint64_t next_stall_sync_ = 0;  // the SYNC count of the next injected thread stall [-]
   std::int64_t last_sync_ns_ = -1, last_reply_ns_ = -1;
   std::int64_t sync_interval_ns_ = 0;   // the last SYNC interval under 100 ms [ns]
   // The host's usual SYNC interval [ns]: the shortest of the last 16 intervals (a stall inflates

@@ -143,10 +143,14 @@ class SerialDriver final : public Driver {
   std::array<ModuleClock, kMaxJoints> clocks_{};
   std::array<LateSample, kMaxJoints> late_{};      // the newest late answer (and record) this cycle
   std::array<HandedOut, kMaxJoints> handed_{};     // the last sample time handed out
-  std::array<std::uint64_t, 256> seq_of_tag_{};  // command counter c → Command::seq
   std::int64_t sync_wire_ns_ = 0;   // the sync-counter write's wire time [ns]
   std::int64_t sync_lower_ns_ = 0;  // no module can have sampled before this [ns]
-  std::array<std::int64_t, 256> sync_lower_of_{};  // the same, per SYNC counter (late answers)
+  // Each answer placed among the host's cycles (answer_log.hpp): the cycles' SYNC bounds and
+  // commands, per joint the answers' track and this cycle's fresh answer's cycle.
+  CycleLog log_;
+  std::array<AnswerTrack, kMaxJoints> track_{};
+  std::array<std::uint64_t, kMaxJoints> fresh_answered_{};
+  std::array<bool, kMaxJoints> fresh_sure_{};
 };
 
 }  // namespace pedalwave::drivers

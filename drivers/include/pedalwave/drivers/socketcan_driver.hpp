@@ -141,10 +141,14 @@ class SocketCanDriver final : public Driver {
   std::array<LateSample, kMaxJoints> late_{};      // the newest late answer (and record) this cycle
   std::array<HandedOut, kMaxJoints> handed_{};     // the last sample time handed out
   std::array<ModuleClock, kMaxJoints> clocks_{};
-  std::array<std::uint64_t, 256> seq_of_tag_{};
   std::int64_t sync_wire_ns_ = 0;   // SYNC frame's wire time at the configured bit rate [ns]
   std::int64_t sync_lower_ns_ = 0;  // no module can have sampled before this [ns]
-  std::array<std::int64_t, 256> sync_lower_of_{};  // the same, per SYNC counter (late answers)
+  // Each answer placed among the host's cycles (answer_log.hpp): the cycles' SYNC bounds and
+  // commands, per joint the answers' track and this cycle's fresh answer's cycle.
+  CycleLog log_;
+  std::array<AnswerTrack, kMaxJoints> track_{};
+  std::array<std::uint64_t, kMaxJoints> fresh_answered_{};
+  std::array<bool, kMaxJoints> fresh_sure_{};
 };
 
 }  // namespace pedalwave::drivers

@@ -587,6 +587,19 @@ TEST(McapWriter, BadCallsAreRefusedWithTheFileAndValueNamed) {
   check_file(path);
 }
 
+// A write the OS refuses (a full disk: /dev/full) is an error naming the file and the OS's reason.
+TEST(McapWriter, FullDiskIsAnErrorNamingTheFile) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "SKIPPED: no /dev/full on this machine";
+  try {
+    Writer w("/dev/full");
+    FAIL() << "wrote the header to a full disk";
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("/dev/full: cannot write the MCAP file"), std::string::npos) << what;
+    EXPECT_NE(what.find("No space left on device"), std::string::npos) << what;
+  }
+}
+
 TEST(McapWriter, CompressionNames) {
   EXPECT_EQ(compression_from_string("zstd"), Compression::zstd);
   EXPECT_EQ(compression_from_string("lz4"), Compression::lz4);

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "alloc_counter.hpp"
 #include "mcap_test_reader.hpp"
 #include "pedalwave/mcap/crc32.hpp"
 #include "pedalwave/mcap/writer.hpp"
@@ -585,6 +586,33 @@ TEST(McapWriter, BadCallsAreRefusedWithTheFileAndValueNamed) {
   EXPECT_THROW(w.write(1, 0, {}), std::logic_error);
   EXPECT_NO_THROW(w.close());  // idempotent
   check_file(path);
+}
+
+// Streaming: memory is one chunk. Once the buffers have held one chunk, a message that does not
+// close the chunk allocates nothing, and closing a chunk allocates a bounded number of times
+// (its entry in the summary's chunk index list, the list growing geometrically; liblz4's frame
+// buffer) — nothing grows with the messages.
+TEST(McapWriter, MemoryIsOneChunkNotTheRecording) {
+  for (const auto compression : {Compression::zstd, Compression::lz4, Compression::none}) {
+    const auto path = temp_file("memory.mcap");
+    Writer w(path, {.compression = compression, .chunk_size = 8192});
+    const auto a = w.add_channel(0, "/a", "x");
+    const auto b = w.add_channel(0, "/b", "x");
+    const auto d = payload(100, 1);
+    for (int i = 0; i < 1000; ++i) w.write(i % 2 ? a : b, i, d);  // warm-up: several chunks
+    const auto chunks_before = w.stats().chunk_count;
+    std::uint64_t in_chunk_allocations = 0, closing_allocations = 0;
+    for (int i = 0; i < 20000; ++i) {
+      const auto chunks = w.stats().chunk_count;
+      const pedalwave::test::AllocationScope scope;
+      w.write(i % 2 ? a : b, 1000 + i, d);
+      (w.stats().chunk_count == chunks ? in_chunk_allocations : closing_allocations) += scope.count();
+    }
+    const auto closed = w.stats().chunk_count - chunks_before;
+    ASSERT_GE(closed, 200u);
+    EXPECT_EQ(in_chunk_allocations, 0u) << to_string(compression);
+    EXPECT_LE(closing_allocations, 2 * closed + 16) << to_string(compression) << ": " << closed << " chunks";
+  }
 }
 
 // A write the OS refuses (a full disk: /dev/full) is an error naming the file and the OS's reason.

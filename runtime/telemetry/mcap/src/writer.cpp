@@ -90,9 +90,18 @@ Writer::Writer(std::filesystem::path path, WriterOptions options)
       (options_.zstd_level < 1 || options_.zstd_level > ZSTD_maxCLevel()))
     throw std::invalid_argument(path_.string() + ": zstd level " + std::to_string(options_.zstd_level) +
                                 ": expected 1 … " + std::to_string(ZSTD_maxCLevel()));
+  if (options_.compression == Compression::zstd) {
+    zstd_ = ZSTD_createCCtx();
+    if (zstd_ == nullptr) throw std::bad_alloc();
+  } else if (options_.compression == Compression::lz4) {
+    if (LZ4F_isError(LZ4F_createCompressionContext(&lz4_, LZ4F_VERSION)) != 0u) throw std::bad_alloc();
+  }
   file_ = std::fopen(path_.c_str(), "wb");
-  if (file_ == nullptr)
-    throw std::runtime_error(path_.string() + ": cannot create the MCAP file: " + std::strerror(errno));
+  if (file_ == nullptr) {
+    const int err = errno;
+    free_codecs();
+    throw std::runtime_error(path_.string() + ": cannot create the MCAP file: " + std::strerror(err));
+  }
   try {
     put(kMagic.data(), kMagic.size());
     scratch_.clear();
@@ -105,20 +114,30 @@ Writer::Writer(std::filesystem::path path, WriterOptions options)
   } catch (...) {
     std::fclose(file_);
     file_ = nullptr;
+    free_codecs();
     throw;
   }
 }
 
 Writer::~Writer() {
-  if (file_ == nullptr) return;
-  try {
-    close();
-  } catch (const std::exception& e) {
-    std::fprintf(stderr,
-                 "pedalwave::mcap: %s: not closed cleanly (%s); it holds the %u chunk(s) completed "
-                 "before: a streaming reader reads them, `mcap recover` rebuilds the index\n",
-                 path_.c_str(), e.what(), static_cast<unsigned>(stats_.chunk_count));
+  if (file_ != nullptr) {
+    try {
+      close();
+    } catch (const std::exception& e) {
+      std::fprintf(stderr,
+                   "pedalwave::mcap: %s: not closed cleanly (%s); it holds the %u chunk(s) completed "
+                   "before: a streaming reader reads them, `mcap recover` rebuilds the index\n",
+                   path_.c_str(), e.what(), static_cast<unsigned>(stats_.chunk_count));
+    }
   }
+  free_codecs();
+}
+
+void Writer::free_codecs() noexcept {
+  if (zstd_ != nullptr) ZSTD_freeCCtx(zstd_);
+  if (lz4_ != nullptr) LZ4F_freeCompressionContext(lz4_);
+  zstd_ = nullptr;
+  lz4_ = nullptr;
 }
 
 void Writer::require_open(const char* what) const {
@@ -264,8 +283,8 @@ void Writer::close_chunk() {
   std::span<const std::byte> records = chunk_;
   if (options_.compression == Compression::zstd) {
     compressed_.resize(ZSTD_compressBound(chunk_.size()));
-    const std::size_t n = ZSTD_compress(compressed_.data(), compressed_.size(), chunk_.data(), chunk_.size(),
-                                        options_.zstd_level);
+    const std::size_t n = ZSTD_compressCCtx(zstd_, compressed_.data(), compressed_.size(), chunk_.data(),
+                                            chunk_.size(), options_.zstd_level);
     if (ZSTD_isError(n) != 0u)
       throw std::runtime_error(path_.string() + ": zstd compression failed: " + ZSTD_getErrorName(n));
     records = std::span<const std::byte>(compressed_.data(), n);
@@ -274,10 +293,17 @@ void Writer::close_chunk() {
     std::memset(&prefs, 0, sizeof prefs);
     prefs.frameInfo.contentSize = chunk_.size();
     compressed_.resize(LZ4F_compressFrameBound(chunk_.size(), &prefs));
-    const std::size_t n =
-        LZ4F_compressFrame(compressed_.data(), compressed_.size(), chunk_.data(), chunk_.size(), &prefs);
-    if (LZ4F_isError(n) != 0u)
-      throw std::runtime_error(path_.string() + ": lz4 compression failed: " + LZ4F_getErrorName(n));
+    // One LZ4 frame (header, blocks, end mark) through the writer's context.
+    std::size_t n = 0;
+    auto step = [&](std::size_t r) {
+      if (LZ4F_isError(r) != 0u)
+        throw std::runtime_error(path_.string() + ": lz4 compression failed: " + LZ4F_getErrorName(r));
+      n += r;
+    };
+    step(LZ4F_compressBegin(lz4_, compressed_.data(), compressed_.size(), &prefs));
+    step(LZ4F_compressUpdate(lz4_, compressed_.data() + n, compressed_.size() - n, chunk_.data(), chunk_.size(),
+                             nullptr));
+    step(LZ4F_compressEnd(lz4_, compressed_.data() + n, compressed_.size() - n, nullptr));
     records = std::span<const std::byte>(compressed_.data(), n);
   }
 
@@ -304,10 +330,12 @@ void Writer::close_chunk() {
 
   // One Message Index per channel with messages here: (log_time, offset in the records), by time.
   const std::uint64_t indexes_start = position_;
+  index.message_index_offsets.reserve(chunk_index_.size());
   for (auto& [channel, ci] : chunk_index_) {
     if (ci.entries.empty()) continue;
-    std::stable_sort(ci.entries.begin(), ci.entries.end(),
-                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    const auto by_time = [](const auto& a, const auto& b) { return a.first < b.first; };
+    if (!std::is_sorted(ci.entries.begin(), ci.entries.end(), by_time))  // (stable_sort allocates)
+      std::stable_sort(ci.entries.begin(), ci.entries.end(), by_time);
     index.message_index_offsets.emplace_back(channel, position_);
     scratch_.clear();
     const std::size_t at = begin_record(scratch_, kMessageIndex);

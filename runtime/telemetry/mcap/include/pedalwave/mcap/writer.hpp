@@ -71,6 +71,9 @@
 
 #include "pedalwave/mcap/crc32.hpp"
 
+struct ZSTD_CCtx_s;  // zstd.h's ZSTD_CCtx
+struct LZ4F_cctx_s;  // lz4frame.h's LZ4F_cctx
+
 namespace pedalwave::mcap {
 
 using SchemaId = std::uint16_t;   // 1 … 65535 (0 means "no schema")
@@ -185,6 +188,7 @@ class Writer {
   void close_chunk();
   void write_summary_and_footer();
   [[noreturn]] void io_error(const char* what);
+  void free_codecs() noexcept;
 
   std::filesystem::path path_;
   WriterOptions options_;
@@ -204,6 +208,8 @@ class Writer {
   // The open chunk.
   std::vector<std::byte> chunk_;             // uncompressed records
   std::vector<std::byte> compressed_;        // scratch for the compressed records
+  ZSTD_CCtx_s* zstd_ = nullptr;              // compression contexts, kept from chunk to chunk
+  LZ4F_cctx_s* lz4_ = nullptr;
   std::vector<std::byte> scratch_;           // scratch for one record (index records, summary)
   std::map<ChannelId, ChunkChannelIndex> chunk_index_;
   bool chunk_has_messages_ = false;

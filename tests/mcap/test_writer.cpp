@@ -24,11 +24,22 @@ using namespace pedalwave::mcap::test;
 
 namespace {
 
+fs::path temp_dir() { return fs::temp_directory_path() / ("pedalwave_mcap_test_" + std::to_string(::getpid())); }
+
 fs::path temp_file(const std::string& name) {
-  const auto dir = fs::temp_directory_path() / ("pedalwave_mcap_test_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  return dir / name;
+  fs::create_directories(temp_dir());
+  return temp_dir() / name;
 }
+
+// The files of this process's tests are removed when it ends.
+class RemoveTempFiles : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(temp_dir(), ec);
+  }
+};
+[[maybe_unused]] const auto* const kRemoveTempFiles = ::testing::AddGlobalTestEnvironment(new RemoveTempFiles);
 
 std::vector<std::byte> payload(std::size_t n, unsigned seed) {
   std::vector<std::byte> b(n);

@@ -127,14 +127,26 @@ TEST(Ros2Msg, DirectoryLookupReadsPackageLayout) {
   fs::remove_all(root);
 }
 
-TEST(Ros2Msg, OfferedQosProfilesYaml) {
-  const std::string reliable = offered_qos_profiles_yaml({.reliable = true, .transient_local = true, .depth = 1});
-  EXPECT_NE(reliable.find("- history: 1\n  depth: 1\n  reliability: 1\n  durability: 1\n"), std::string::npos)
-      << reliable;
-  EXPECT_NE(reliable.find("liveliness_lease_duration:\n    sec: 2147483647\n    nsec: 4294967295"),
-            std::string::npos);
+TEST(Ros2Msg, OfferedQosProfilesYamlInBothRosbag2Spellings) {
+  // Names (Jazzy and later) by default.
+  const std::string latched = offered_qos_profiles_yaml({.reliable = true, .transient_local = true, .depth = 1});
+  EXPECT_NE(latched.find("- history: keep_last\n  depth: 1\n  reliability: reliable\n  durability: transient_local\n"),
+            std::string::npos)
+      << latched;
+  EXPECT_NE(latched.find("  liveliness: automatic\n  liveliness_lease_duration:\n    sec: 9223372036\n    nsec: 854775807\n"
+                         "  avoid_ros_namespace_conventions: false"),
+            std::string::npos)
+      << latched;
   const std::string best = offered_qos_profiles_yaml({.reliable = false, .transient_local = false, .depth = 50});
-  EXPECT_NE(best.find("depth: 50\n  reliability: 2\n  durability: 2\n"), std::string::npos) << best;
+  EXPECT_NE(best.find("depth: 50\n  reliability: best_effort\n  durability: volatile\n"), std::string::npos) << best;
+  // Integers (Humble, Iron).
+  const std::string humble =
+      offered_qos_profiles_yaml({.reliable = true, .transient_local = true, .depth = 1}, QosYamlStyle::integers);
+  EXPECT_NE(humble.find("- history: 1\n  depth: 1\n  reliability: 1\n  durability: 1\n"), std::string::npos) << humble;
+  EXPECT_NE(humble.find("liveliness_lease_duration:\n    sec: 2147483647\n    nsec: 4294967295"), std::string::npos);
+  const std::string humble_best =
+      offered_qos_profiles_yaml({.reliable = false, .transient_local = false, .depth = 50}, QosYamlStyle::integers);
+  EXPECT_NE(humble_best.find("depth: 50\n  reliability: 2\n  durability: 2\n"), std::string::npos) << humble_best;
 }
 
 }  // namespace

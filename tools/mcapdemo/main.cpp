@@ -3,15 +3,18 @@
 // writer against independent readers (tests/mcap/interop).
 //
 //   pedalwave_mcap_demo --out demo.mcap [--compression zstd|lz4|none] [--chunk-size BYTES]
-//                       [--duration S] [--expect FILE.jsonl]
+//                       [--duration S] [--start-ns NS] [--qos-style names|integers] [--expect FILE.jsonl]
 //
-// Topics (log times from the wall clock at start, CLOCK_REALTIME, 100 Hz base rate):
+// Topics (log times from the wall clock at start, CLOCK_REALTIME, or from --start-ns [ns since the
+// Unix epoch] for a file that is the same byte for byte on every run; 100 Hz base rate):
 //   /pedalwave/joint_states      sensor_msgs/msg/JointState       100 Hz, 5 joints (α, α̇, SEA torque)
 //   /pedalwave/status            std_msgs/msg/String              1 Hz
 //   /pedalwave/module_health     pedalwave_mcap_demo/msg/ModuleHealth  10 Hz (a custom message that
 //                                uses every CDR shape: 1/2/4/8-byte fields, bool, fixed array, sequences)
 //   /pedalwave/robot_description std_msgs/msg/String              once, transient-local QoS
-// The data are made up (a travelling wave); they only exercise the format.
+// The data are made up (a travelling wave); they only exercise the format. --qos-style: how the
+// channels' offered_qos_profiles spell the QoS — names for ROS 2 Jazzy and later (default),
+// integers for Humble and Iron (ros2msg.hpp, QosYamlStyle).
 //
 // --expect writes one JSON line per message (topic, sequence, log_time, publish_time as strings of
 // integers, and the message's fields as published; int64 as strings, doubles to 17 digits) so a
@@ -102,7 +105,7 @@ struct Recorder {
 };
 
 int run(const std::string& out_path, const std::string& compression, std::uint64_t chunk_size, double duration,
-        const std::string& expect_path) {
+        std::uint64_t start_ns, const std::string& qos_style, const std::string& expect_path) {
   mcap::WriterOptions options;
   options.compression = mcap::compression_from_string(compression);
   options.chunk_size = chunk_size;
@@ -114,8 +117,9 @@ int run(const std::string& out_path, const std::string& compression, std::uint64
   }
   mcap::Writer out(out_path, options);
   const auto defs = definitions();
-  const auto qos = mcap::offered_qos_profiles_yaml({.reliable = true, .transient_local = false, .depth = 10});
-  const auto latched = mcap::offered_qos_profiles_yaml({.reliable = true, .transient_local = true, .depth = 1});
+  const auto style = qos_style == "integers" ? mcap::QosYamlStyle::integers : mcap::QosYamlStyle::names;
+  const auto qos = mcap::offered_qos_profiles_yaml({.reliable = true, .transient_local = false, .depth = 10}, style);
+  const auto latched = mcap::offered_qos_profiles_yaml({.reliable = true, .transient_local = true, .depth = 1}, style);
   auto channel = [&](std::string_view topic, std::string_view type, const std::string& q) {
     return out.add_ros2_channel(topic, type, mcap::concatenate_msg_definitions(type, defs), q);
   };
@@ -125,10 +129,12 @@ int run(const std::string& out_path, const std::string& compression, std::uint64
   const auto health = channel("/pedalwave/module_health", "pedalwave_mcap_demo/msg/ModuleHealth", qos);
   Recorder rec{out, expect_path.empty() ? nullptr : &expect, {}};
 
-  timespec now{};
-  clock_gettime(CLOCK_REALTIME, &now);
-  const std::uint64_t t0 = static_cast<std::uint64_t>(now.tv_sec) * 1'000'000'000ull +
-                           static_cast<std::uint64_t>(now.tv_nsec);
+  std::uint64_t t0 = start_ns;
+  if (t0 == 0) {
+    timespec now{};
+    clock_gettime(CLOCK_REALTIME, &now);
+    t0 = static_cast<std::uint64_t>(now.tv_sec) * 1'000'000'000ull + static_cast<std::uint64_t>(now.tv_nsec);
+  }
 
   // The robot description, once (a tiny URDF-like text with characters JSON must escape).
   {
@@ -231,15 +237,20 @@ int run(const std::string& out_path, const std::string& compression, std::uint64
 
 int main(int argc, char** argv) {
   CLI::App app{"Writes an MCAP recording (ros2 profile) of synthetic snake data with pedalwave::mcap."};
-  std::string out_path, compression = "zstd", expect_path;
+  std::string out_path, compression = "zstd", qos_style = "names", expect_path;
   std::uint64_t chunk_size = 256 * 1024;
+  std::uint64_t start_ns = 0;
   double duration = 10.0;
   app.add_option("--out", out_path, "the MCAP file to write")->required();
   app.add_option("--compression", compression, "chunk compression")
       ->check(CLI::IsMember({"zstd", "lz4", "none"}));
   app.add_option("--chunk-size", chunk_size, "uncompressed bytes per chunk")->check(CLI::Range(1ull, 1ull << 32));
   app.add_option("--duration", duration, "recorded time [s] (100 Hz)")->check(tk::cli::finite_in(0.01, 3600));
+  app.add_option("--start-ns", start_ns, "first log time [ns since the Unix epoch] (default: now)")
+      ->check(CLI::Range(1ull, 1ull << 62));
+  app.add_option("--qos-style", qos_style, "offered_qos_profiles spelling: names (ROS 2 Jazzy+) or integers (Humble, Iron)")
+      ->check(CLI::IsMember({"names", "integers"}));
   app.add_option("--expect", expect_path, "also write every message's published values here (JSON lines)");
   if (const auto code = tk::cli::parse(app, argc, argv, kTool)) return *code;
-  return tk::cli::run(kTool, [&] { return run(out_path, compression, chunk_size, duration, expect_path); });
+  return tk::cli::run(kTool, [&] { return run(out_path, compression, chunk_size, duration, start_ns, qos_style, expect_path); });
 }

@@ -155,17 +155,29 @@ std::string concatenate_msg_definitions(std::string_view type, const MsgLookup& 
   return out;
 }
 
-std::string offered_qos_profiles_yaml(const QosProfile& qos) {
-  // rmw enums: history 1 = KEEP_LAST; reliability 1 = RELIABLE, 2 = BEST_EFFORT;
-  // durability 1 = TRANSIENT_LOCAL, 2 = VOLATILE; liveliness 1 = AUTOMATIC.
+std::string offered_qos_profiles_yaml(const QosProfile& qos, QosYamlStyle style) {
   std::ostringstream y;
-  const char* inf = "\n    sec: 2147483647\n    nsec: 4294967295\n";
-  y << "- history: 1\n"
-    << "  depth: " << qos.depth << "\n"
-    << "  reliability: " << (qos.reliable ? 1 : 2) << "\n"
-    << "  durability: " << (qos.transient_local ? 1 : 2) << "\n"
-    << "  deadline:" << inf << "  lifespan:" << inf << "  liveliness: 1\n"
-    << "  liveliness_lease_duration:" << inf << "  avoid_ros_namespace_conventions: false";
+  if (style == QosYamlStyle::names) {
+    // rmw's policy names; infinite durations as RMW_DURATION_INFINITE {9223372036 s, 854775807 ns}.
+    const char* inf = "\n    sec: 9223372036\n    nsec: 854775807\n";
+    y << "- history: keep_last\n"
+      << "  depth: " << qos.depth << "\n"
+      << "  reliability: " << (qos.reliable ? "reliable" : "best_effort") << "\n"
+      << "  durability: " << (qos.transient_local ? "transient_local" : "volatile") << "\n"
+      << "  deadline:" << inf << "  lifespan:" << inf << "  liveliness: automatic\n"
+      << "  liveliness_lease_duration:" << inf << "  avoid_ros_namespace_conventions: false";
+  } else {
+    // rmw enums: history 1 = KEEP_LAST; reliability 1 = RELIABLE, 2 = BEST_EFFORT;
+    // durability 1 = TRANSIENT_LOCAL, 2 = VOLATILE; liveliness 1 = AUTOMATIC. Infinite durations as
+    // Humble writes them.
+    const char* inf = "\n    sec: 2147483647\n    nsec: 4294967295\n";
+    y << "- history: 1\n"
+      << "  depth: " << qos.depth << "\n"
+      << "  reliability: " << (qos.reliable ? 1 : 2) << "\n"
+      << "  durability: " << (qos.transient_local ? 1 : 2) << "\n"
+      << "  deadline:" << inf << "  lifespan:" << inf << "  liveliness: 1\n"
+      << "  liveliness_lease_duration:" << inf << "  avoid_ros_namespace_conventions: false";
+  }
   return y.str();
 }
 

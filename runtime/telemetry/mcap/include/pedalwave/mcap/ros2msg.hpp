@@ -7,6 +7,7 @@
 // use (`std_msgs/Header header`) and the form rosbag2 and Foxglove's parser resolve.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <map>
@@ -80,8 +81,17 @@ struct QosProfile {
   bool transient_local = false;  // TRANSIENT_LOCAL durability (latched, e.g. robot_description)
   unsigned depth = 10;           // KEEP_LAST depth
 };
-// One-entry YAML list in rosbag2's offered_qos_profiles form (rmw enum values as integers, infinite
-// deadline / lifespan / lease as sec 2147483647, nsec 4294967295 — the form ROS 2 Humble writes).
-[[nodiscard]] std::string offered_qos_profiles_yaml(const QosProfile& qos);
+// rosbag2 changed how it spells the QoS policies (rosbag2 metadata version 9, ros2/rosbag2#1476):
+// ROS 2 Jazzy and later read names ("keep_last", "reliable", …) and, for a file that does not say
+// which version wrote it, expect them; Humble and Iron read the rmw enum values as integers.
+enum class QosYamlStyle : std::uint8_t {
+  names,     // ROS 2 Jazzy, Kilted, Rolling (metadata version >= 9)
+  integers,  // ROS 2 Humble, Iron (metadata version <= 8)
+};
+// A one-entry YAML list in rosbag2's offered_qos_profiles form: history, depth, reliability,
+// durability, deadline, lifespan, liveliness, liveliness_lease_duration (infinite durations as the
+// distribution writes them), avoid_ros_namespace_conventions.
+[[nodiscard]] std::string offered_qos_profiles_yaml(const QosProfile& qos,
+                                                    QosYamlStyle style = QosYamlStyle::names);
 
 }  // namespace pedalwave::mcap

@@ -42,7 +42,7 @@
 //   const mcap::MsgDirectoryLookup msgs({"<repo>/ros2/interfaces"});           // <pkg>/msg/<T>.msg
 //   const auto js = out.add_ros2_channel("/snake/joint_states", "sensor_msgs/msg/JointState",
 //                                        mcap::concatenate_msg_definitions("sensor_msgs/msg/JointState", msgs),
-//                                        mcap::offered_qos_profiles_yaml({}));
+//                                        mcap::offered_qos_profiles_yaml({.depth = 10}));
 //   mcap::CdrWriter cdr;
 //   for (each received sample) {                       // the recorder's thread
 //     cdr.reset();

@@ -3,7 +3,10 @@
 // record reader of mcap_test_reader.hpp (tests/mcap/interop/ reads them with @mcap/core too).
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
 #include <unistd.h>
+
+#include <csignal>
 
 #include <algorithm>
 #include <filesystem>
@@ -637,6 +640,61 @@ TEST(McapWriter, FullDiskIsAnErrorNamingTheFile) {
     EXPECT_NE(what.find("/dev/full: cannot write the MCAP file"), std::string::npos) << what;
     EXPECT_NE(what.find("No space left on device"), std::string::npos) << what;
   }
+}
+
+// A disk that fills up during the recording (the file-size limit, RLIMIT_FSIZE, stands in for
+// it): the write that fails throws naming the file, later writes are refused, the destructor says
+// on stderr that the file was not finished and what it holds, and the file holds the chunks
+// completed before the failure.
+TEST(McapWriter, DiskFullDuringRecordingKeepsTheCompletedChunksAndSaysSo) {
+  const auto path = temp_file("fsize.mcap");
+  rlimit old{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &old), 0);
+  const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);  // EFBIG instead of the signal
+  rlimit small = old;
+  small.rlim_cur = 40000;  // [bytes]
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &small), 0);
+  std::string error, on_destruction;
+  std::uint32_t chunks_done = 0;
+  {
+    Writer w(path, {.compression = Compression::none, .chunk_size = 8000});
+    const auto c = w.add_channel(0, "/big", "x");
+    try {
+      for (int i = 0; i < 10000; ++i) w.write(c, i, payload(200, i));
+    } catch (const std::runtime_error& e) {
+      error = e.what();
+    }
+    chunks_done = w.stats().chunk_count;
+    EXPECT_THROW(w.write(c, 0, payload(1, 0)), std::logic_error);
+    ::testing::internal::CaptureStderr();
+  }
+  on_destruction = ::testing::internal::GetCapturedStderr();
+  setrlimit(RLIMIT_FSIZE, &old);
+  std::signal(SIGXFSZ, old_handler);
+
+  EXPECT_NE(error.find(path.string() + ": cannot write the MCAP file: File too large"), std::string::npos) << error;
+  EXPECT_NE(on_destruction.find(path.string() + ": not closed cleanly"), std::string::npos) << on_destruction;
+  EXPECT_NE(on_destruction.find("it holds the " + std::to_string(chunks_done) + " chunk(s) completed"),
+            std::string::npos)
+      << on_destruction;
+  // The file: magic, header, then whole chunks each with its message index, then a cut-off tail.
+  const auto image = read_bytes(path.string());
+  EXPECT_LE(image.size(), 40000u);
+  const auto recs = split_records(image, 8, image.size());
+  std::size_t chunks = 0, messages = 0;
+  for (std::size_t i = 1; i < recs.list.size(); ++i) {
+    if (recs.list[i].op != 0x06) {
+      EXPECT_EQ(recs.list[i].op, 0x07);
+      continue;
+    }
+    const Chunk k = decode_chunk(recs.list[i].body);
+    EXPECT_EQ(k.uncompressed_crc, crc32(k.records));
+    messages += split_records(k.records, 0, k.records.size()).list.size() - (chunks == 0 ? 1 : 0);
+    ++chunks;
+  }
+  EXPECT_EQ(chunks, chunks_done);
+  EXPECT_GE(chunks, 3u);
+  EXPECT_GT(messages, 0u);
 }
 
 TEST(McapWriter, CompressionNames) {

@@ -33,7 +33,8 @@
 // still holds.
 //
 // Threads: a Writer is used from one thread at a time (the recorder's). Not for the real-time cycle:
-// it allocates and does file I/O.
+// it allocates and does file I/O. Neither copyable nor movable: hold it in a std::optional or a
+// std::unique_ptr where it is opened later (e.g. only when --record ends in .mcap).
 //
 // Wiring a recorder (e.g. pedalwave_monitor --record run.mcap), with ros2msg.hpp and cdr.hpp:
 //

@@ -328,11 +328,16 @@ TEST_F(RuntimeCli, EmergencyStopFromTheMonitorExitsWithTheEStopStatus) {
   ASSERT_NE(out().find("pedalwave runtime '"), std::string::npos) << out() << err();
   const fs::path mon_log = dir_ / "monitor.log";
   const std::string mon = std::string("'") + PEDALWAVE_MONITOR_EXE + "' --domain " + std::to_string(domain) +
-                          " --interface lo --no-view --once --duration 30 --command estop >'" + mon_log.string() +
+                          " --interface lo --robot estop --no-view --command estop --ack-timeout 30 >'" + mon_log.string() +
                           "' 2>&1";
   const int mon_status = std::system(mon.c_str());
   const auto t0 = std::chrono::steady_clock::now();
   const int status = wait_for(pid);
+  // The monitor exits on the final ack: 0 = the robot executed the e-stop.
+  EXPECT_TRUE(WIFEXITED(mon_status) && WEXITSTATUS(mon_status) == 0)
+      << "monitor status " << mon_status << ":\n" << slurp(mon_log);
+  EXPECT_NE(slurp(mon_log).find("estop: command estop id"), std::string::npos) << slurp(mon_log);
+  EXPECT_NE(slurp(mon_log).find("executed"), std::string::npos) << slurp(mon_log);
   EXPECT_EQ(status, 5) << "monitor status " << mon_status << ":\n" << slurp(mon_log) << "\n" << out() << err();
   EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30)) << "the e-stop ended the run";
   EXPECT_NE(out().find("exit: emergency_stop, final mode SAFE_STOP"), std::string::npos) << out();

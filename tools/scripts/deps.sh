@@ -7,6 +7,9 @@ pkgs=(cmake ninja-build g++ clang libeigen3-dev libspdlog-dev libyaml-cpp-dev li
       librsvg2-bin can-utils libclang-rt-14-dev
       dpkg-dev file adduser systemd)  # the Debian package: dpkg-shlibdeps, CPack's ELF check,
                                       # the service user, systemd-analyze verify of the unit
+# ROS 2 .msg -> IDL at build time (rosidl_adapter needs empy and lark), and the cross-host
+# telemetry test's network namespaces (ip netns, veth).
+pkgs+=(python3-rosidl rosidl-tools python3-empy python3-lark iproute2)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

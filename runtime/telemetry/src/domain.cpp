@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <map>
 #include <mutex>
@@ -124,7 +125,9 @@ dds_qos_t* make_qos(QosClass c, int state_depth) {
     case QosClass::kRos:
       dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_MSECS(10));
       dds_qset_durability(q, DDS_DURABILITY_VOLATILE);
-      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 10);
+      // ROS's default depth 10 for writers; a reader keeps its state_history_depth (history
+      // depth is not matched between writer and reader).
+      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, std::max(state_depth, 10));
       break;
   }
   const dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;

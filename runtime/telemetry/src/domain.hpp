@@ -81,7 +81,7 @@ struct TopicNames {
 inline constexpr int kStateWriterDepth = 4;
 inline constexpr int kEventDepth = 100;
 inline constexpr int kCommandDepth = 16;
-//   ros:         reliable, volatile, keep-last(10)   (ROS 2's default profile: what
+//   ros:         reliable, volatile, keep-last(10; a reader max(10, state_depth))   (ROS 2's default profile: what
 //                robot_state_publisher, RViz and `ros2 topic echo` match; max blocking 10 ms)
 // Every class asks for XCDR1, the data representation rmw_cyclonedds uses.
 enum class QosClass { kState, kEvent, kDescription, kCommand, kRos };

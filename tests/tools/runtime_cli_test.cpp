@@ -319,10 +319,10 @@ TEST_F(RuntimeCli, EmergencyStopFromTheMonitorExitsWithTheEStopStatus) {
                     "controller: {k_c: 0, pd_placement: module}\n"
                     "realtime: {clock: realtime, priority: 0, cpu: -1, lock_memory: false, auto_start: true}\n"
                     "observer: {enabled: true}\n"
-                    "telemetry: {enabled: true, domain_id: " + std::to_string(domain) +
-                    ", interface: lo, commands: true}\n");
-  // A cap far beyond what the test needs: only the e-stop ends this run early.
-  const pid_t pid = start("-c '" + cfg + "' --duration 60");
+                    "telemetry: {enabled: true, domain_id: 0, interface: lo, commands: true}\n");
+  // A cap far beyond what the test needs: only the e-stop ends this run early. --domain beats the
+  // file's domain_id (and ROS_DOMAIN_ID), and the start line says so.
+  const pid_t pid = start("-c '" + cfg + "' --duration 60 --domain " + std::to_string(domain));
   for (int i = 0; i < 200 && out().find("pedalwave runtime '") == std::string::npos; ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   ASSERT_NE(out().find("pedalwave runtime '"), std::string::npos) << out() << err();
@@ -341,6 +341,9 @@ TEST_F(RuntimeCli, EmergencyStopFromTheMonitorExitsWithTheEStopStatus) {
   EXPECT_EQ(status, 5) << "monitor status " << mon_status << ":\n" << slurp(mon_log) << "\n" << out() << err();
   EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30)) << "the e-stop ended the run";
   EXPECT_NE(out().find("exit: emergency_stop, final mode SAFE_STOP"), std::string::npos) << out();
+  EXPECT_NE(out().find("telemetry DDS domain " + std::to_string(domain) +
+                       " (--domain), namespace /estop, discovery on lo (config (interface lo))"),
+            std::string::npos) << out();
 #endif
 }
 

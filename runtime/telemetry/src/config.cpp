@@ -134,7 +134,7 @@ DomainChoice resolve_domain(const DomainRequest& req,
     c.discovery_source = "ROS_LOCALHOST_ONLY=1";
   } else {
     d.interface = "";
-    c.discovery_source = "default (Cyclone's choice of interface, multicast discovery)";
+    c.discovery_source = "default";
   }
   return c;
 }

@@ -180,32 +180,25 @@ struct DdsTelemetry::Impl {
     if (d.accepted && !handler) {
       d = {false, "no command handler installed (telemetry-only process)"};
     } else if (d.accepted) {
-      // Registered before the handler hands it over: the outcome event cannot overtake it.
-      {
-        std::lock_guard lock(pending_mutex);
-        pending.push_back(
-            {c, monotonic_ns() + static_cast<std::int64_t>(cfg.command_outcome_timeout_s * 1e9)});
+      // Registered before the handler hands it over, and QUEUED acked under the same lock: the
+      // outcome (resolve_outcomes, telemetry thread, same lock) can neither miss the command nor
+      // overtake its QUEUED ack.
+      std::lock_guard lock(pending_mutex);
+      pending.push_back(
+          {c, monotonic_ns() + static_cast<std::int64_t>(cfg.command_outcome_timeout_s * 1e9)});
+      if (handler(c)) {
+        accepted.add();
+        spdlog::info("telemetry: command {} id {} from \"{}\" queued", command_kind_name(m.kind),
+                     m.id, m.sender);
+        publish_ack(c, AckStatus::kQueued, "queued for the real-time loop");
+        return;
       }
-      if (!handler(c)) {
-        drop_pending(c.id);
-        d = {false, "runtime command mailbox full; retry"};
-      }
+      pending.pop_back();
+      d = {false, "runtime command mailbox full; retry"};
     }
-    if (d.accepted) {
-      accepted.add();
-      spdlog::info("telemetry: command {} id {} from \"{}\" queued", command_kind_name(m.kind),
-                   m.id, m.sender);
-      publish_ack(c, AckStatus::kQueued, "queued for the real-time loop");
-    } else {
-      spdlog::warn("telemetry: command {} id {} from \"{}\" rejected: {}",
-                   command_kind_name(m.kind), m.id, m.sender, d.reason);
-      publish_ack(c, AckStatus::kRejected, d.reason.c_str());
-    }
-  }
-
-  void drop_pending(std::uint64_t id) {
-    std::lock_guard lock(pending_mutex);
-    std::erase_if(pending, [id](const Pending& p) { return p.cmd.id == id; });
+    spdlog::warn("telemetry: command {} id {} from \"{}\" rejected: {}",
+                 command_kind_name(m.kind), m.id, m.sender, d.reason);
+    publish_ack(c, AckStatus::kRejected, d.reason.c_str());
   }
 
   // Telemetry thread: a runtime event may be the outcome of queued commands.

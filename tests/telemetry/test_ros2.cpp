@@ -521,6 +521,30 @@ TEST(Ros2Conventions, DefaultCycloneParticipantsDiscoverEachOtherAcrossProcesses
   EXPECT_EQ(peer.wait(), 0);
 }
 
+// CYCLONEDDS_URI is honoured when the configuration names no interface: the robot process gets
+// the localhost-only configuration through the variable alone (its own setting: Cyclone's
+// choice); this process listens on lo by unicast only. Without the variable the robot would sit
+// on the default interface with ephemeral ports, which a lo/unicast listener cannot find.
+TEST(Ros2Conventions, CycloneddsUriFromTheEnvironmentIsUsedWhenTheConfigurationGivesNoInterface) {
+  DomainLease lease;
+  telemetry::DomainConfig lo;
+  lo.domain_id = lease.id();
+  lo.interface = "lo";
+  Child peer({peer_path(), "publish", "--domain", std::to_string(lease.id()), "--interface",
+              "default", "--robot", "viaenv", "--joints", "3", "--rate", "200", "--cycles", "100",
+              "--events", "1", "--wait-reader-s", "20", "--linger-s", "1"},
+             {"CYCLONEDDS_URI=" + telemetry::cyclone_config_xml(lo)});
+  auto cfg = monitor_config(lease.id(), "viaenv");
+  cfg.interface = "lo";
+  telemetry::TelemetrySubscriber sub(cfg);
+  Collector got;
+  sub.add_listener(got);
+  ASSERT_TRUE(poll_until(sub, [&] { return got.descs.size() == 1 && got.joint.size() >= 50; },
+                         30000ms))
+      << "descs " << got.descs.size() << " joint " << got.joint.size();
+  EXPECT_EQ(peer.wait(), 0);
+}
+
 // ---- The monitor's view ------------------------------------------------------------------------
 
 TEST(MonitorRos2, LostEventsAreCountedAndASilentRobotsModeIsLastSeen) {

@@ -254,8 +254,8 @@ struct DdsTelemetry::Impl {
       }
     }
     for (const Pending& p : expired) {
-      const std::string why = "no outcome from the real-time loop within " +
-                              std::to_string(cfg.command_outcome_timeout_s) + " s";
+      const std::string why = fmt::format("no outcome from the real-time loop within {:g} s",
+                                          cfg.command_outcome_timeout_s);
       spdlog::warn("telemetry: command id {}: {}", p.cmd.id, why);
       publish_ack(p.cmd, AckStatus::kRejected, why.c_str());
     }
@@ -291,6 +291,7 @@ struct DdsTelemetry::Impl {
   }
 
   void publish_joint_states_and_tf(const runtime::CycleSample& s) {
+    if (joint_name_ptrs.empty()) return;   // no description yet: no joint names to publish
     const int n = std::min(clamp_joints(s.joints), static_cast<int>(joint_name_ptrs.size()));
     // α̇ by backward difference between consecutive samples the sink received (every cycle
     // reaches the sink, decimation applies to publishing only); β̇ before the first one.

@@ -7,11 +7,15 @@
 #include <dds/ddsi/ddsi_serdata.h>
 #include <gtest/gtest.h>
 
+#include <ifaddrs.h>
+#include <net/if.h>
+
+#include <cstdlib>
 #include <cstring>
 #include <thread>
 
 #include "Telemetry.h"
-#include "dds_domain_lease.hpp"
+#include "dds_test_support.hpp"
 #include "pedalwave/telemetry/dds_telemetry.hpp"
 #include "pedalwave/telemetry/synthetic.hpp"
 
@@ -131,6 +135,72 @@ TEST(Wire, JointStatesArePlainXcdr1AsRmwCycloneddsWritesThem) {
   EXPECT_EQ(std::vector<unsigned char>(payload.begin(), payload.begin() + static_cast<long>(xcdr1.size())),
             xcdr1);
   EXPECT_LT(payload.size(), xcdr1.size() + 4);
+}
+
+bool have_multicast_interface() {
+  ifaddrs* list = nullptr;
+  if (getifaddrs(&list) != 0) return false;
+  bool found = false;
+  for (ifaddrs* a = list; a != nullptr; a = a->ifa_next) {
+    const unsigned f = a->ifa_flags;
+    if ((f & IFF_UP) && (f & IFF_MULTICAST) && !(f & IFF_LOOPBACK) && a->ifa_addr != nullptr &&
+        a->ifa_addr->sa_family == AF_INET)
+      found = true;
+  }
+  freeifaddrs(list);
+  return found;
+}
+
+// What a ROS 2 node on rmw_cyclonedds does: a participant created with no configuration at all
+// (no dds_create_domain: Cyclone's defaults), a reader of sensor_msgs/msg/JointState on
+// rt/<ns>/joint_states with ROS's default QoS. The robot is another process with the telemetry's
+// default discovery. It is found and its samples decode.
+TEST(Wire, APlainDefaultCycloneParticipantReadsTheRobotsJointStates) {
+  if (!have_multicast_interface())
+    GTEST_SKIP() << "*** SKIPPED: no non-loopback multicast interface up: Cyclone's default "
+                    "discovery has nothing to run on here ***";
+  if (std::getenv("CYCLONEDDS_URI") != nullptr)
+    GTEST_SKIP() << "*** SKIPPED: CYCLONEDDS_URI is set; this test needs Cyclone's defaults ***";
+  DomainLease lease;
+  Child robot({peer_path(), "publish", "--domain", std::to_string(lease.id()), "--interface",
+               "default", "--robot", "plain", "--joints", "3", "--rate", "200", "--cycles", "200",
+               "--wait-reader-s", "20", "--linger-s", "1"});
+  const dds_entity_t pp = dds_create_participant(lease.id(), nullptr, nullptr);
+  ASSERT_GT(pp, 0);
+  const dds_entity_t topic = dds_create_topic(pp, &sensor_msgs_msg_dds__JointState__desc,
+                                              "rt/plain/joint_states", nullptr, nullptr);
+  ASSERT_GT(topic, 0);
+  dds_qos_t* q = dds_create_qos();   // ROS 2's default profile: reliable, volatile, keep-last 10
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1000);
+  const dds_entity_t reader = dds_create_reader(pp, topic, q, nullptr);
+  dds_delete_qos(q);
+  ASSERT_GT(reader, 0);
+  // The peer starts publishing once something reads its pedalwave joint_state: read that too.
+  const dds_entity_t own_topic = dds_create_topic(pp, &pedalwave_msg_dds__JointState__desc,
+                                                  "rt/plain/pedalwave/joint_state", nullptr, nullptr);
+  ASSERT_GT(own_topic, 0);
+  ASSERT_GT(dds_create_reader(pp, own_topic, nullptr, nullptr), 0);
+  std::size_t n = 0;
+  std::vector<std::string> names;
+  for (int i = 0; i < 3000 && n < 150; ++i) {
+    void* buf[16] = {};
+    dds_sample_info_t info[16];
+    const int got = dds_take(reader, buf, info, 16, 16);
+    for (int k = 0; k < got; ++k) {
+      if (!info[k].valid_data) continue;
+      const auto* m = static_cast<const sensor_msgs_msg_dds__JointState_*>(buf[k]);
+      ++n;
+      if (names.empty())
+        for (std::uint32_t j = 0; j < m->name._length; ++j) names.emplace_back(m->name._buffer[j]);
+    }
+    if (got > 0) dds_return_loan(reader, buf, got);
+    else std::this_thread::sleep_for(10ms);
+  }
+  dds_delete(pp);
+  EXPECT_GE(n, 150u) << "a default participant received " << n << " joint_states";
+  EXPECT_EQ(names, (std::vector<std::string>{"plain/joint_1", "plain/joint_2", "plain/joint_3"}));
+  EXPECT_EQ(robot.wait(), 0);
 }
 
 }  // namespace

@@ -228,6 +228,25 @@ TEST(Ros2Standard, MonotonicStampsWhenConfigured) {
   EXPECT_EQ(got.js[0].stamp_ns, robot.sample(7).t_ns);
 }
 
+// robot_description is transient-local, as robot_state_publisher's: a subscriber started after the
+// robot (RViz opened later) still gets the URDF, exactly once; the volatile joint_states are not
+// replayed.
+TEST(Ros2Standard, ALateSubscriberGetsTheUrdf) {
+  DomainLease lease;
+  telemetry::DdsTelemetry tel(robot_config(lease.id(), "late"));
+  const telemetry::SyntheticRobot robot(4, 100.0);
+  tel.on_description(robot.description());
+  for (std::uint64_t i = 0; i < 20; ++i) tel.on_cycle(robot.sample(i));
+  telemetry::TelemetrySubscriber sub(monitor_config(lease.id(), "late", true));
+  StandardCollector got;
+  sub.add_listener(got);
+  ASSERT_TRUE(poll_until(sub, [&] { return !got.urdf.empty(); }));
+  sub.poll(300ms);
+  EXPECT_EQ(got.urdf.size(), 1u);
+  EXPECT_EQ(count(got.urdf[0], "<link name=\"late/link_"), 5u);
+  EXPECT_TRUE(got.js.empty()) << "joint_states are volatile";
+}
+
 // ---- Namespaces, addressed commands, outcome acks ---------------------------------------------
 
 struct Robot {

@@ -407,6 +407,21 @@ TEST(Ros2Conventions, AcksReportTheRuntimesOutcomeNotJustReception) {
   EXPECT_EQ(st.commands_rejected, 2u);
 }
 
+TEST(Ros2Conventions, ARobotStoppingWithACommandQueuedStillGivesItsFinalAck) {
+  DomainLease lease;
+  auto r = std::make_unique<Robot>(lease.id(), "stopping", /*outcome_timeout_s=*/60.0);
+  telemetry::TelemetrySubscriber sub(monitor_config(lease.id(), "stopping"));
+  Collector got;
+  sub.add_listener(got);
+  ASSERT_TRUE(sub.wait_for_robot(10s));
+  ASSERT_TRUE(sub.send_command(cmd(20, OperatorCommandKind::kStopWalking)));
+  ASSERT_TRUE(poll_until(sub, [&] { return acks_of(got, 20).size() == 1; }));
+  r.reset();   // the daemon ends before the loop said anything about it
+  ASSERT_TRUE(poll_until(sub, [&] { return acks_of(got, 20).size() == 2; }));
+  EXPECT_EQ(acks_of(got, 20)[1].status, AckStatus::kRejected);
+  EXPECT_NE(acks_of(got, 20)[1].reason.find("stopped before"), std::string::npos);
+}
+
 TEST(Ros2Conventions, EventSeqCountsEachEventTopicWithoutGaps) {
   DomainLease lease;
   telemetry::DdsTelemetry tel(robot_config(lease.id(), "ev"));

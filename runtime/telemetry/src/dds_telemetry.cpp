@@ -229,8 +229,9 @@ struct DdsTelemetry::Impl {
       char reason[sizeof(e.text) + 1];
       std::copy(e.text.begin(), e.text.end(), reason);
       reason[sizeof(e.text)] = '\0';
-      spdlog::info("telemetry: command {} id {} {}: {}", command_kind_name(static_cast<std::uint8_t>(p.cmd.kind)),
-                   p.cmd.id, ok ? "executed" : "refused by the runtime", reason);
+      spdlog::info("telemetry: command {} id {} {}: {}",
+                   command_kind_name(static_cast<std::uint8_t>(p.cmd.kind)), p.cmd.id,
+                   ok ? "executed" : "refused by the runtime", reason);
       publish_ack(p.cmd, ok ? AckStatus::kExecuted : AckStatus::kRejected, reason);
     }
   }
@@ -488,6 +489,16 @@ DdsTelemetry::~DdsTelemetry() {
   if (impl_->cmd_thread.joinable()) {
     dds_set_guardcondition(impl_->stop_guard, true);
     impl_->cmd_thread.join();
+  }
+  // Commands still waiting for their outcome get their final ack now: no answer will come.
+  std::vector<Impl::Pending> left;
+  {
+    std::lock_guard lock(impl_->pending_mutex);
+    left.swap(impl_->pending);
+  }
+  for (const auto& p : left) {
+    impl_->publish_ack(p.cmd, AckStatus::kRejected,
+                       "the robot's telemetry stopped before the real-time loop's outcome");
   }
   impl_->participant.reset();  // deletes topics, writers, reader, conditions, waitset
 }

@@ -214,9 +214,11 @@ int main(int argc, char** argv) {
         break;
       }
       if (std::chrono::duration<double>(Clock::now() - start).count() >= ack_timeout_s) {
-        std::fprintf(stderr, "pedalwave_monitor: %s within %.1f s\n",
-                     pending->sent ? "no final ack from the robot" : "no robot answering commands",
-                     ack_timeout_s);
+        std::fprintf(stderr,
+                     "pedalwave_monitor: %s within %.1f s (robot \"%s\": is --robot right? a "
+                     "robot ignores commands addressed to another name)\n",
+                     pending->sent ? "no final ack" : "no robot answering commands", ack_timeout_s,
+                     cfg.robot.c_str());
         status = 4;
         break;
       }

@@ -215,16 +215,50 @@ void read_realtime(const Reader& r, DaemonConfig& c) {
   rc.auto_start = r.boolean("auto_start", true);
 }
 
+// A ROS 2 namespace: "/" then names [A-Za-z_][A-Za-z0-9_]* separated by "/", no trailing "/",
+// at most 63 characters. (The telemetry checks it again when it starts; this layer does not
+// link the telemetry, which a build without DDS leaves out.)
+bool ros_namespace_ok(const std::string& ns) {
+  if (ns.size() > 63 || ns.front() != '/' || ns.back() == '/') return false;
+  bool token_start = true;
+  for (std::size_t i = 1; i < ns.size(); ++i) {
+    const char ch = ns[i];
+    if (ch == '/') {
+      if (token_start) return false;
+      token_start = true;
+      continue;
+    }
+    const bool alpha = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || ch == '_';
+    const bool digit = ch >= '0' && ch <= '9';
+    if (!alpha && !(digit && !token_start)) return false;
+    token_start = false;
+  }
+  return true;
+}
+
 void read_telemetry(const Reader& r, DaemonConfig& c) {
-  r.allow_only({"enabled", "domain_id", "interface", "peers", "decimation_state",
-                "decimation_timing", "commands", "amplitude_max", "omega_max", "eta_min", "eta_max"});
+  r.allow_only({"enabled", "domain_id", "interface", "localhost_only", "peers", "namespace",
+                "stamp_clock", "standard_topics", "decimation_state", "decimation_timing",
+                "commands", "amplitude_max", "omega_max", "eta_min", "eta_max"});
   TelemetrySection& t = c.telemetry;
   t.enabled = r.boolean("enabled", true);
+  t.has_domain_id = r.has("domain_id");
   t.domain_id = static_cast<std::uint32_t>(r.integer("domain_id", 0, 0, 232));
-  t.interface = r.string("interface", "lo");
-  if (t.interface.empty() || t.interface.size() > 15 ||
-      t.interface.find_first_of("/ \t") != std::string::npos)
+  t.has_interface = r.has("interface");
+  t.interface = r.string("interface", "");
+  if (t.has_interface && (t.interface.empty() || t.interface.size() > 15 ||
+                          t.interface.find_first_of("/ \t") != std::string::npos))
     r["interface"].fail("a network interface name (1 … 15 characters, no '/' or blanks)");
+  t.localhost_only = r.boolean("localhost_only", false);
+  if (t.localhost_only && t.has_interface && t.interface != "lo")
+    r["interface"].fail("no interface besides localhost_only: true (or \"lo\"): localhost_only "
+                        "binds to lo");
+  t.ros_namespace = r.string("namespace", "");
+  if (!t.ros_namespace.empty() && !ros_namespace_ok(t.ros_namespace))
+    r["namespace"].fail("a ROS 2 namespace: \"/\" then names [A-Za-z_][A-Za-z0-9_]* separated by "
+                        "\"/\", no trailing \"/\", at most 63 characters (e.g. \"/snake1\")");
+  t.realtime_stamps = r.choice("stamp_clock", "realtime", {"realtime", "monotonic"}) == "realtime";
+  t.standard_topics = r.boolean("standard_topics", true);
   if (r.has("peers")) {
     const Reader p = r["peers"];
     if (!p.is_sequence()) p.fail("a list of addresses");

@@ -70,7 +70,9 @@ config::DaemonConfig demo_config(std::uint64_t cycles) {
   c.duration = static_cast<double>(cycles) / c.runtime.rt.rate_hz;
   c.runtime.max_cycles = cycles;
   c.telemetry.enabled = true;
+  c.telemetry.has_domain_id = true;
   c.telemetry.domain_id = domain_id();
+  c.telemetry.has_interface = true;
   c.telemetry.interface = "lo";
   c.log_file = "/dev/null";  // the consumer's event log; the test reads the bus instead
   // The observer's verdicts are published but never acted on, so how long a run lasts and its
@@ -90,6 +92,7 @@ telemetry::SubscriberConfig subscriber_config(const std::string& sender = "test_
   s.interface = "lo";
   s.state_history_depth = 2000;  // 2 s at 1 kHz between polls: a stalled test thread loses nothing
   s.sender = sender;
+  s.robot = "demo";  // demo.yaml's name: its namespace /demo and the commands' target
   return s;
 }
 
@@ -187,7 +190,7 @@ class MonitorProcess {
   MonitorProcess(const std::vector<std::string>& extra, const std::string& out_path) {
 #ifdef PEDALWAVE_MONITOR_EXE
     std::vector<std::string> argv{PEDALWAVE_MONITOR_EXE, "--domain", std::to_string(domain_id()),
-                                  "--interface", "lo", "--no-view"};
+                                  "--interface", "lo", "--robot", "demo", "--no-view"};
     argv.insert(argv.end(), extra.begin(), extra.end());
     posix_spawn_file_actions_t fa;
     posix_spawn_file_actions_init(&fa);
@@ -592,11 +595,14 @@ TEST(DdsEndToEnd, EmergencyStopFromTheMonitorStopsTheRuntime) {
   EXPECT_EQ(seen.modes.back().to_name, "safe_stop");
   EXPECT_EQ(seen.modes.back().from_name, "running");
   EXPECT_NE(seen.modes.back().text.find("emergency stop"), std::string::npos) << seen.modes.back().text;
-  // The monitor saw its command accepted (its recording of command_ack).
+  // The monitor saw its command queued, then executed (its recording of command_ack), and
+  // exited 0 on its own (mon.stop() above only reaps it).
   const Csv ack = read_csv(dir + "/op.command_ack.csv");
-  ASSERT_EQ(ack.rows.size(), 1u) << "log: " << dir << "/op.log";
+  ASSERT_EQ(ack.rows.size(), 2u) << "log: " << dir << "/op.log";
   EXPECT_EQ(ack.at(0, "kind_name"), "emergency_stop");
-  EXPECT_TRUE(ack.at(0, "accepted") == "1" || ack.at(0, "accepted") == "true") << ack.at(0, "accepted");
+  EXPECT_EQ(ack.at(0, "status"), "queued");
+  EXPECT_EQ(ack.at(1, "status"), "executed") << ack.at(1, "reason");
+  EXPECT_EQ(ack.at(1, "robot"), "demo");
   std::filesystem::remove_all(dir);
 }
 
@@ -639,6 +645,7 @@ TEST(DdsEndToEnd, EmergencyStopOverDdsReachesTheDriverLast) {
   telemetry::TelemetryConfig tc;
   tc.domain_id = cfg.telemetry.domain_id;
   tc.interface = cfg.telemetry.interface;
+  tc.robot_name = cfg.name;
   tc.decimation = {cfg.telemetry.decimation_state, cfg.telemetry.decimation_state,
                    cfg.telemetry.decimation_state, cfg.telemetry.decimation_timing};
   tc.enable_commands = false;  // an e-stop is honoured even with commands disabled
@@ -676,10 +683,12 @@ TEST(DdsEndToEnd, EmergencyStopOverDdsReachesTheDriverLast) {
   ASSERT_TRUE(sent);
   EXPECT_EQ(result.reason, runtime::ExitReason::kEmergencyStop);
   EXPECT_EQ(result.final_mode, runtime::Mode::kSafeStop);
-  // The ack: accepted although commands are disabled.
-  ASSERT_EQ(seen.acks.size(), 1u);
+  // The acks: queued although commands are disabled, then executed by the loop.
+  ASSERT_EQ(seen.acks.size(), 2u);
   EXPECT_EQ(seen.acks[0].id, 4242u);
-  EXPECT_TRUE(seen.acks[0].accepted) << seen.acks[0].reason;
+  EXPECT_EQ(seen.acks[0].status, telemetry::AckStatus::kQueued) << seen.acks[0].reason;
+  EXPECT_EQ(seen.acks[1].id, 4242u);
+  EXPECT_EQ(seen.acks[1].status, telemetry::AckStatus::kExecuted) << seen.acks[1].reason;
   // The safe stop reached the driver, once, as its last call.
   EXPECT_EQ(spy.safe_stops.load(), 1u);
   EXPECT_EQ(spy.calls_after_safe_stop.load(), 0u);

@@ -342,6 +342,10 @@ const std::vector<KeyRow> kDaemonKeys = {
     {"telemetry.eta_max", kSimDriver + "telemetry:\n  eta_max: @\n", "3", "x", "-3.5", "a number >= telemetry.eta_min = -3.2"},
     {"telemetry.domain_id", kSimDriver + "telemetry:\n  domain_id: @\n", "3", "x", "233", "an integer in [0, 232]"},
     {"telemetry.interface", kSimDriver + "telemetry:\n  interface: @\n", "eth0", "[1]", "a b", "a network interface name"},
+    {"telemetry.namespace", kSimDriver + "telemetry:\n  namespace: @\n", "/lab/snake_1", "snake1", "/a//b", "a ROS 2 namespace"},
+    {"telemetry.stamp_clock", kSimDriver + "telemetry:\n  stamp_clock: @\n", "monotonic", "utc", "7", "one of realtime, monotonic"},
+    {"telemetry.localhost_only", kSimDriver + "telemetry:\n  localhost_only: @\n", "true", "x", "", ""},
+    {"telemetry.standard_topics", kSimDriver + "telemetry:\n  standard_topics: @\n", "false", "x", "", ""},
     {"telemetry.omega_max", kSimDriver + "telemetry:\n  omega_max: @\n", "6", "x", "1e300", "a number in (0, 100] [rad/s]"},
     // The robot a bus drives (beside a simulated plant it must be the scene's: DaemonContradictions).
     {"robot.N", kCan + "robot:\n  N: @\n", "8", "six", "65", "an integer in [2, 64]"},

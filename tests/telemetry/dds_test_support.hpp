@@ -27,7 +27,9 @@ namespace pedalwave::test {
 // A child process (the test peer) with its stdout on a pipe.
 class Child {
  public:
-  explicit Child(const std::vector<std::string>& argv) {
+  // extra_env: "NAME=value" entries added to (and overriding) this process's environment.
+  explicit Child(const std::vector<std::string>& argv,
+                 const std::vector<std::string>& extra_env = {}) {
     int fds[2];
     if (::pipe2(fds, O_CLOEXEC) != 0) throw std::runtime_error("pipe2 failed");
     posix_spawn_file_actions_t fa;
@@ -36,7 +38,19 @@ class Child {
     std::vector<char*> args;
     for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
     args.push_back(nullptr);
-    const int rc = posix_spawn(&pid_, args[0], &fa, nullptr, args.data(), environ);
+    std::vector<std::string> env_store;
+    for (char** e = environ; *e != nullptr; ++e) {
+      const std::string kv(*e);
+      const std::string name = kv.substr(0, kv.find('='));
+      bool overridden = false;
+      for (const auto& x : extra_env) overridden |= x.substr(0, x.find('=')) == name;
+      if (!overridden) env_store.push_back(kv);
+    }
+    env_store.insert(env_store.end(), extra_env.begin(), extra_env.end());
+    std::vector<char*> envp;
+    for (auto& kv : env_store) envp.push_back(kv.data());
+    envp.push_back(nullptr);
+    const int rc = posix_spawn(&pid_, args[0], &fa, nullptr, args.data(), envp.data());
     posix_spawn_file_actions_destroy(&fa);
     ::close(fds[1]);
     if (rc != 0) {

@@ -6,6 +6,8 @@
 //       (after a joint_state reader matched, if T > 0) C cycles at HZ from seq S; then lingers.
 //       Prints "events-published", "reader-matched <n>", "done <written joint_state>".
 //   peer subscribe --domain D
+//   Both: [--interface IF] ("lo" default; "default" = Cyclone's own choice, as a default ROS 2
+//   node) [--robot NAME] (the robot name / namespace, default "pedalwave").
 //       TelemetrySubscriber polling until killed; prints "subscribed", then "received <n>" lines.
 #include <time.h>
 
@@ -35,6 +37,8 @@ struct Args {
   int decimate_timing = 1;
   double wait_reader_s = 0.0;
   double linger_s = 0.5;
+  std::string interface = "lo";
+  std::string robot = "pedalwave";
 };
 
 Args parse(int argc, char** argv) {
@@ -53,6 +57,8 @@ Args parse(int argc, char** argv) {
     else if (k == "--decimate-timing") a.decimate_timing = std::stoi(v);
     else if (k == "--wait-reader-s") a.wait_reader_s = std::stod(v);
     else if (k == "--linger-s") a.linger_s = std::stod(v);
+    else if (k == "--interface") a.interface = std::string(v) == "default" ? "" : v;
+    else if (k == "--robot") a.robot = v;
     else throw std::runtime_error("peer: unknown option " + k);
   }
   return a;
@@ -66,6 +72,8 @@ void say(const std::string& s) {
 int publish(const Args& a) {
   telemetry::TelemetryConfig cfg;
   cfg.domain_id = a.domain;
+  cfg.interface = a.interface;
+  cfg.robot_name = a.robot;
   cfg.decimation.loop_timing = a.decimate_timing;
   telemetry::DdsTelemetry tel(cfg, [](const runtime::OperatorCommand&) { return true; });
   const telemetry::SyntheticRobot robot(a.joints, a.rate);
@@ -113,6 +121,8 @@ struct Counting : telemetry::TelemetryListener {
 int subscribe(const Args& a) {
   telemetry::SubscriberConfig cfg;
   cfg.domain_id = a.domain;
+  cfg.interface = a.interface;
+  cfg.robot = a.robot;
   telemetry::TelemetrySubscriber sub(cfg);
   Counting c;
   sub.add_listener(c);

@@ -215,11 +215,11 @@ TEST_F(CommandFixture, ValidCommandsReachTheHandlerAndAreAcked) {
   ASSERT_TRUE(sub.wait_for_robot(10s));
 
   auto ack = roundtrip(sub, got, simple(1, OperatorCommandKind::kStartWalking));
-  EXPECT_TRUE(ack.accepted) << ack.reason;
+  EXPECT_EQ(ack.status, telemetry::AckStatus::kQueued) << ack.reason;
   ack = roundtrip(sub, got, gait(2, 0.5, 3.0, 0.7));
-  EXPECT_TRUE(ack.accepted) << ack.reason;
+  EXPECT_EQ(ack.status, telemetry::AckStatus::kQueued) << ack.reason;
   ack = roundtrip(sub, got, gait(3, 1.2, 12.0, 0.0));  // closed bounds: edges accepted
-  EXPECT_TRUE(ack.accepted) << ack.reason;
+  EXPECT_EQ(ack.status, telemetry::AckStatus::kQueued) << ack.reason;
   std::lock_guard lock(mu);
   ASSERT_EQ(handled.size(), 3u);
   EXPECT_EQ(handled[0].kind, OperatorCommandKind::kStartWalking);
@@ -238,21 +238,21 @@ TEST_F(CommandFixture, InvalidCommandsAreRejectedWithTheReasonPublished) {
   ASSERT_TRUE(sub.wait_for_robot(10s));
 
   auto ack = roundtrip(sub, got, gait(10, 3.0, 1.0, 0.5));
-  EXPECT_FALSE(ack.accepted);
+  EXPECT_EQ(ack.status, telemetry::AckStatus::kRejected);
   EXPECT_NE(ack.reason.find("amplitude = 3"), std::string::npos) << ack.reason;
   EXPECT_NE(ack.reason.find("[0, 1.2]"), std::string::npos) << ack.reason;
 
   ack = roundtrip(sub, got, gait(11, 0.5, std::nan(""), 0.5));
-  EXPECT_FALSE(ack.accepted);
+  EXPECT_EQ(ack.status, telemetry::AckStatus::kRejected);
   EXPECT_NE(ack.reason.find("omega"), std::string::npos) << ack.reason;
   EXPECT_NE(ack.reason.find("not a finite"), std::string::npos) << ack.reason;
 
   ack = roundtrip(sub, got, gait(12, 0.5, 1.0, -0.1));
-  EXPECT_FALSE(ack.accepted);
+  EXPECT_EQ(ack.status, telemetry::AckStatus::kRejected);
   EXPECT_NE(ack.reason.find("eta"), std::string::npos) << ack.reason;
 
   ack = roundtrip(sub, got, simple(13, static_cast<OperatorCommandKind>(9)));
-  EXPECT_FALSE(ack.accepted);
+  EXPECT_EQ(ack.status, telemetry::AckStatus::kRejected);
   EXPECT_NE(ack.reason.find("unknown command kind 9"), std::string::npos) << ack.reason;
 
   EXPECT_EQ(handled_count(), 0u) << "a rejected command reached the runtime";
@@ -269,7 +269,7 @@ TEST_F(CommandFixture, DisabledCommandsRejectAllButEmergencyStop) {
   for (auto c : {simple(20, OperatorCommandKind::kStartWalking),
                  simple(21, OperatorCommandKind::kStopWalking), gait(22, 0.5, 3.0, 0.7)}) {
     const auto ack = roundtrip(sub, got, c);
-    EXPECT_FALSE(ack.accepted);
+    EXPECT_EQ(ack.status, telemetry::AckStatus::kRejected);
     EXPECT_NE(ack.reason.find("disabled"), std::string::npos) << ack.reason;
   }
   EXPECT_EQ(handled_count(), 0u);
@@ -277,7 +277,7 @@ TEST_F(CommandFixture, DisabledCommandsRejectAllButEmergencyStop) {
   OperatorCommand estop = simple(23, OperatorCommandKind::kEmergencyStop);
   estop.amplitude = std::nan("");
   const auto ack = roundtrip(sub, got, estop);
-  EXPECT_TRUE(ack.accepted) << ack.reason;
+  EXPECT_EQ(ack.status, telemetry::AckStatus::kQueued) << ack.reason;
   std::lock_guard lock(mu);
   ASSERT_EQ(handled.size(), 1u);
   EXPECT_EQ(handled[0].kind, OperatorCommandKind::kEmergencyStop);
@@ -296,7 +296,7 @@ TEST_F(CommandFixture, FullMailboxAndMissingHandlerAreRejections) {
       mailbox_accepts = false;
     }
     const auto ack = roundtrip(sub, got, simple(30, OperatorCommandKind::kEmergencyStop));
-    EXPECT_FALSE(ack.accepted);
+    EXPECT_EQ(ack.status, telemetry::AckStatus::kRejected);
     EXPECT_NE(ack.reason.find("mailbox full"), std::string::npos) << ack.reason;
   }
   auto robot = make_robot(true, /*with_handler=*/false);
@@ -305,7 +305,7 @@ TEST_F(CommandFixture, FullMailboxAndMissingHandlerAreRejections) {
   sub.add_listener(got);
   ASSERT_TRUE(sub.wait_for_robot(10s));
   const auto ack = roundtrip(sub, got, simple(31, OperatorCommandKind::kStopWalking));
-  EXPECT_FALSE(ack.accepted);
+  EXPECT_EQ(ack.status, telemetry::AckStatus::kRejected);
   EXPECT_NE(ack.reason.find("no command handler"), std::string::npos) << ack.reason;
 }
 

@@ -1,5 +1,7 @@
 // CsvRecorder: one file per topic, header from the first message, values round-trip exactly.
 #include <gtest/gtest.h>
+
+#include <algorithm>
 #include <unistd.h>
 
 #include <filesystem>
@@ -63,6 +65,7 @@ TEST_F(RecorderTest, WritesOneFilePerTopicWithHeaderAndExactValues) {
     rec.on_joint_state(j, MessageInfo{12, 23, 1});
     FaultEventMsg f{7, 99, 3, "encoder_stuck", 2, "degrade", 1, 0.25, 0.1, 5,
                     "stuck, says \"module\""};
+    f.event_seq = 17;
     rec.on_fault_event(f, MessageInfo{13, 24, 2});
     EXPECT_EQ(rec.rows("joint_state"), 2u);
     EXPECT_EQ(rec.rows("fault_event"), 1u);
@@ -87,8 +90,13 @@ TEST_F(RecorderTest, WritesOneFilePerTopicWithHeaderAndExactValues) {
 
   const auto fe = read_csv((dir / "run.fault_event.csv").string());
   ASSERT_EQ(fe.size(), 2u);
-  EXPECT_EQ(fe[0].back(), "text");
-  EXPECT_EQ(fe[1].back(), "stuck, says \"module\"") << "text with comma and quotes survives";
+  const auto col = [&](const std::string& name) {
+    const auto it = std::find(fe[0].begin(), fe[0].end(), name);
+    EXPECT_NE(it, fe[0].end()) << name;
+    return static_cast<std::size_t>(it - fe[0].begin());
+  };
+  EXPECT_EQ(fe[1][col("text")], "stuck, says \"module\"") << "text with comma and quotes survives";
+  EXPECT_EQ(fe[1][col("event_seq")], "17");
   EXPECT_EQ(fe[1][5], "encoder_stuck");
 
   // Topics with no message: file exists, empty.

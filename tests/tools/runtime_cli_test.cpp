@@ -319,23 +319,31 @@ TEST_F(RuntimeCli, EmergencyStopFromTheMonitorExitsWithTheEStopStatus) {
                     "controller: {k_c: 0, pd_placement: module}\n"
                     "realtime: {clock: realtime, priority: 0, cpu: -1, lock_memory: false, auto_start: true}\n"
                     "observer: {enabled: true}\n"
-                    "telemetry: {enabled: true, domain_id: " + std::to_string(domain) +
-                    ", interface: lo, commands: true}\n");
-  // A cap far beyond what the test needs: only the e-stop ends this run early.
-  const pid_t pid = start("-c '" + cfg + "' --duration 60");
+                    "telemetry: {enabled: true, domain_id: 0, interface: lo, commands: true}\n");
+  // A cap far beyond what the test needs: only the e-stop ends this run early. --domain beats the
+  // file's domain_id (and ROS_DOMAIN_ID), and the start line says so.
+  const pid_t pid = start("-c '" + cfg + "' --duration 60 --domain " + std::to_string(domain));
   for (int i = 0; i < 200 && out().find("pedalwave runtime '") == std::string::npos; ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   ASSERT_NE(out().find("pedalwave runtime '"), std::string::npos) << out() << err();
   const fs::path mon_log = dir_ / "monitor.log";
   const std::string mon = std::string("'") + PEDALWAVE_MONITOR_EXE + "' --domain " + std::to_string(domain) +
-                          " --interface lo --no-view --once --duration 30 --command estop >'" + mon_log.string() +
+                          " --interface lo --robot estop --no-view --command estop --ack-timeout 30 >'" + mon_log.string() +
                           "' 2>&1";
   const int mon_status = std::system(mon.c_str());
   const auto t0 = std::chrono::steady_clock::now();
   const int status = wait_for(pid);
+  // The monitor exits on the final ack: 0 = the robot executed the e-stop.
+  EXPECT_TRUE(WIFEXITED(mon_status) && WEXITSTATUS(mon_status) == 0)
+      << "monitor status " << mon_status << ":\n" << slurp(mon_log);
+  EXPECT_NE(slurp(mon_log).find("estop: command estop id"), std::string::npos) << slurp(mon_log);
+  EXPECT_NE(slurp(mon_log).find("executed"), std::string::npos) << slurp(mon_log);
   EXPECT_EQ(status, 5) << "monitor status " << mon_status << ":\n" << slurp(mon_log) << "\n" << out() << err();
   EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30)) << "the e-stop ended the run";
   EXPECT_NE(out().find("exit: emergency_stop, final mode SAFE_STOP"), std::string::npos) << out();
+  EXPECT_NE(out().find("telemetry DDS domain " + std::to_string(domain) +
+                       " (--domain), namespace /estop, discovery on lo (config (interface lo))"),
+            std::string::npos) << out();
 #endif
 }
 

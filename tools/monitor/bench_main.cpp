@@ -91,6 +91,10 @@ struct Counts : telemetry::TelemetryListener {
   }
 };
 
+// --standard-topics: also sensor_msgs/JointState + /tf on every cycle (and /diagnostics at 1 Hz),
+// with a subscriber to them; off: the four pedalwave state topics only (the table in README.md).
+bool g_standard = false;
+
 [[noreturn]] void subscriber_child(std::uint32_t domain, int fd) {
   int rc = 0;
   {
@@ -100,6 +104,7 @@ struct Counts : telemetry::TelemetryListener {
     telemetry::SubscriberConfig cfg;
     cfg.domain_id = domain;
     cfg.state_history_depth = 2000;
+    cfg.standard_topics = g_standard;
     telemetry::TelemetrySubscriber sub(cfg);
     Counts c;
     sub.add_listener(c);
@@ -117,6 +122,7 @@ struct Counts : telemetry::TelemetryListener {
   {
     telemetry::TelemetryConfig cfg;
     cfg.domain_id = domain;
+    cfg.standard_topics = g_standard;
     telemetry::DdsTelemetry tel(cfg);
     const telemetry::SyntheticRobot robot(joints, rate);
     tel.on_description(robot.description());
@@ -178,6 +184,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--joints", joint_counts, "N-1 values to measure")
       ->check(CLI::Range(1, runtime::kMaxJoints));
+  app.add_flag("--standard-topics", g_standard,
+               "also publish (and subscribe to) the standard ROS 2 topics: joint_states, tf, "
+               "diagnostics");
   app.add_option("--domain", domain, "DDS domain id (keep clear of other users)")
       ->check(CLI::Range(0, 232))
       ->capture_default_str();

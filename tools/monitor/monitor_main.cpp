@@ -3,10 +3,18 @@
 // every topic to CSV (one file per topic: FILE.<topic>.csv), optionally sending one operator
 // command. Says when the robot goes silent and when it comes back. Ctrl-C exits cleanly.
 //
-//   pedalwave_monitor [--domain 0] [--interface lo] [--peer ADDR]... [--record run.csv]
-//                     [--duration S] [--once] [--silence-timeout 1.0] [--refresh 5]
-//                     [--no-view] [--command start|stop|estop|gait --amplitude A --omega W --eta E]
-// Exit status: 0 normal end; 1 configuration/DDS error; 2 --once and nothing complete arrived.
+//   pedalwave_monitor [--robot NAME] [--namespace /NS] [--domain 0] [--interface IF |
+//                     --localhost-only] [--peer ADDR]... [--record run.csv] [--duration S]
+//                     [--once] [--silence-timeout 1.0] [--refresh 5] [--no-view]
+//                     [--command start|stop|estop|gait --amplitude A --omega W --eta E
+//                      [--ack-timeout 5]]
+// Domain and discovery as a ROS 2 node: --domain, else ROS_DOMAIN_ID, else 0; --interface or
+// --localhost-only, else CYCLONEDDS_URI / ROS_LOCALHOST_ONLY=1, else Cyclone's own choice.
+// --command sends one command to the robot and exits on its final ack.
+// Exit status: 0 normal end (--command: the robot executed it); 1 configuration/DDS error;
+// 2 bad input, or --once and nothing complete arrived; 3 --command rejected (by the robot's
+// checks, its mailbox or its real-time loop); 4 --command without a final ack in time (no
+// robot, or no answer).
 #include <signal.h>
 #include <unistd.h>
 
@@ -44,6 +52,16 @@ struct PendingCommand {
   bool sent = false;
 };
 
+// The final ack of one command from one robot (acks of every robot share one topic).
+struct AckWatcher final : telemetry::TelemetryListener {
+  std::uint64_t id = 0;
+  std::string robot;
+  std::optional<telemetry::CommandAckMsg> final_ack;
+  void on_command_ack(const telemetry::CommandAckMsg& m, const telemetry::MessageInfo&) override {
+    if (m.id == id && m.robot == robot && m.final() && !final_ack) final_ack = m;
+  }
+};
+
 std::optional<runtime::OperatorCommandKind> parse_kind(const std::string& s) {
   using K = runtime::OperatorCommandKind;
   if (s == "start") return K::kStartWalking;
@@ -58,6 +76,10 @@ std::optional<runtime::OperatorCommandKind> parse_kind(const std::string& s) {
 int main(int argc, char** argv) {
   CLI::App app{"pedalwave_monitor: live view and recorder of a pedalwave robot's DDS telemetry"};
   telemetry::SubscriberConfig cfg;
+  std::optional<std::uint32_t> domain;
+  std::optional<std::string> interface;
+  bool localhost_only = false;
+  double ack_timeout_s = 5.0;
   std::string record;
   double duration_s = 0.0;
   bool once = false;
@@ -66,8 +88,19 @@ int main(int argc, char** argv) {
   bool no_view = false;
   std::string command;
   double amplitude = 0.0, omega = 0.0, eta = 0.0;
-  app.add_option("--domain", cfg.domain_id, "DDS domain id")->capture_default_str();
-  app.add_option("--interface", cfg.interface, "network interface (lo: unicast to 127.0.0.1)")
+  app.add_option("--robot", cfg.robot, "the robot's name (its commands' target)")
+      ->capture_default_str();
+  app.add_option("--namespace", cfg.ros_namespace,
+                 "the robot's ROS namespace (default: / + its name, e.g. /demo)");
+  app.add_option("--domain", domain, "DDS domain id (default: ROS_DOMAIN_ID, else 0)")
+      ->check(CLI::Range(0, 232));
+  app.add_option("--interface", interface,
+                 "network interface (default: CYCLONEDDS_URI, else Cyclone's choice)");
+  app.add_flag("--localhost-only", localhost_only,
+               "discovery by unicast on lo only (as ROS_LOCALHOST_ONLY=1)");
+  app.add_option("--ack-timeout", ack_timeout_s,
+                 "--command: seconds to wait for the robot and its final ack")
+      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--peer", cfg.peers, "extra unicast discovery peer (repeatable)");
   app.add_option("--record", record,
@@ -96,8 +129,23 @@ int main(int argc, char** argv) {
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
 
+  telemetry::DomainChoice choice;
+  try {
+    telemetry::DomainRequest req;
+    if (domain) req.cli_domain = &*domain;
+    if (interface) req.config_interface = &*interface;
+    req.config_localhost_only = localhost_only;
+    req.config_peers = cfg.peers;
+    choice = telemetry::resolve_domain(req, [](const char* v) { return std::getenv(v); });
+  } catch (...) {
+    return pedalwave::toolkit::cli::exit_for_current_exception("pedalwave_monitor");
+  }
+  cfg.domain_id = choice.domain.domain_id;
+  cfg.interface = choice.domain.interface;
+
   const bool tty = ::isatty(STDOUT_FILENO) == 1;
-  const bool live_view = !no_view && !once && tty;
+  const bool command_mode = !command.empty();
+  const bool live_view = !no_view && !once && tty && !command_mode;
   std::unique_ptr<telemetry::TelemetrySubscriber> sub;
   std::unique_ptr<telemetry::CsvRecorder> recorder;
   telemetry::MonitorState state(static_cast<std::int64_t>(silence_s * 1e9));
@@ -112,6 +160,9 @@ int main(int argc, char** argv) {
   if (recorder) sub->add_listener(*recorder);
 
   std::optional<PendingCommand> pending;
+  AckWatcher acks;
+  acks.robot = cfg.robot;
+  sub->add_listener(acks);
   if (!command.empty()) {
     PendingCommand p;
     p.cmd.kind = *parse_kind(command);
@@ -120,11 +171,18 @@ int main(int argc, char** argv) {
     p.cmd.omega = omega;
     p.cmd.eta = eta;
     pending = p;
+    acks.id = p.cmd.id;
   }
 
   if (!live_view && !once) {
-    std::fprintf(stderr, "pedalwave_monitor: listening on domain %u, interface \"%s\"%s\n",
-                 cfg.domain_id, cfg.interface.c_str(),
+    std::fprintf(stderr,
+                 "pedalwave_monitor: robot \"%s\" (namespace %s), domain %u (%s), discovery %s "
+                 "(%s)%s\n",
+                 cfg.robot.c_str(), cfg.effective_namespace().c_str(), cfg.domain_id,
+                 choice.domain_source.c_str(),
+                 cfg.interface.empty() ? "Cyclone's choice of interface"
+                                       : ("on " + cfg.interface).c_str(),
+                 choice.discovery_source.c_str(),
                  record.empty() ? "" : (", recording to " + record).c_str());
   }
   if (live_view) std::fputs("\x1b[?25l\x1b[2J", stdout);  // hide cursor, clear
@@ -139,9 +197,32 @@ int main(int argc, char** argv) {
     sub->poll(std::chrono::milliseconds(50));
     const std::int64_t t = now_ns();
     state.tick(t);
-    if (pending && !pending->sent && state.liveness().heard() &&
-        sub->wait_for_robot(std::chrono::milliseconds(0))) {
+    if (pending && !pending->sent && sub->wait_for_robot(std::chrono::milliseconds(0))) {
       pending->sent = sub->send_command(pending->cmd);
+    }
+    if (command_mode) {
+      // Exit on this command's final ack from this robot (acks of other robots and commands
+      // travel on the same topic).
+      for (const auto& n : state.take_new_notices()) std::printf("%s\n", n.c_str());
+      std::fflush(stdout);
+      if (pending->sent && acks.final_ack) {
+        const auto& a = *acks.final_ack;
+        std::printf("%s: command %s id %llu %s: %s\n", a.robot.c_str(), command.c_str(),
+                    static_cast<unsigned long long>(a.id), telemetry::to_string(a.status),
+                    a.reason.c_str());
+        status = a.status == telemetry::AckStatus::kExecuted ? 0 : 3;
+        break;
+      }
+      if (std::chrono::duration<double>(Clock::now() - start).count() >= ack_timeout_s) {
+        std::fprintf(stderr,
+                     "pedalwave_monitor: %s within %.1f s (robot \"%s\": is --robot right? a "
+                     "robot ignores commands addressed to another name)\n",
+                     pending->sent ? "no final ack" : "no robot answering commands", ack_timeout_s,
+                     cfg.robot.c_str());
+        status = 4;
+        break;
+      }
+      continue;
     }
     if (once && state.complete() && (!pending || pending->sent)) {
       // Give a sent command's ack a moment to arrive before the snapshot.

@@ -4,7 +4,7 @@
 // and registers the command handler: accepted commands are printed; an emergency stop switches
 // the published mode to SAFE_STOP.
 //
-//   pedalwave_telemetry_synth [--domain 0] [--interface lo] [--joints 6] [--rate 1000]
+//   pedalwave_telemetry_synth [--domain 0] [--interface IF] [--robot pedalwave] [--joints 6] [--rate 1000]
 //                             [--duration 0] [--fault-every 5] [--no-commands]
 //                             [--decimate N] (all state topics)
 #include <signal.h>
@@ -41,7 +41,11 @@ int main(int argc, char** argv) {
   bool no_commands = false;
   int decimate = 1;
   app.add_option("--domain", cfg.domain_id, "DDS domain id")->capture_default_str();
-  app.add_option("--interface", cfg.interface, "network interface")->capture_default_str();
+  cfg.interface = "";   // as a ROS 2 node: Cyclone's choice (CYCLONEDDS_URI, multicast)
+  app.add_option("--interface", cfg.interface,
+                 "network interface (default: Cyclone's choice; lo: localhost only)");
+  app.add_option("--robot", cfg.robot_name, "robot name (namespace /NAME, commands' target)")
+      ->capture_default_str();
   app.add_option("--peer", cfg.peers, "extra unicast discovery peer (repeatable)");
   app.add_option("--joints", joints, "N-1 joints")->check(CLI::Range(1, runtime::kMaxJoints))
       ->capture_default_str();

@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cmath>
 #include <exception>
 #include <cstdio>
@@ -393,7 +394,7 @@ std::vector<CheckItem> preflight(const config::DaemonConfig& cfg, const DaemonOp
         "CPU " + std::to_string(cpu) + " exists (this machine has " + std::to_string(n) + " online CPUs)",
         "no such CPU (realtime.cpu: 0 … " + std::to_string(n - 1) + ", or -1 for no pinning)");
   }
-  if (cfg.telemetry.enabled && opt.telemetry)
+  if (cfg.telemetry.enabled && opt.telemetry && cfg.telemetry.has_interface)
     add(::if_nametoindex(cfg.telemetry.interface.c_str()) != 0,
         "DDS network interface " + cfg.telemetry.interface + " exists", "no such network interface");
   if (!opt.plots_dir.empty()) {
@@ -482,11 +483,31 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   if (!opt.plots_dir.empty()) sinks.push_back(&recorder);
 #if PEDALWAVE_HAS_DDS
   std::unique_ptr<telemetry::DdsTelemetry> dds;
+  std::string telemetry_line = "off";
   if (cfg.telemetry.enabled && opt.telemetry) {
+    // Domain and discovery: --domain, then the file, then the ROS 2 environment, then defaults.
+    telemetry::DomainRequest req;
+    const std::uint32_t cli_domain = opt.domain.value_or(0);
+    if (opt.domain) req.cli_domain = &cli_domain;
+    if (cfg.telemetry.has_domain_id) req.config_domain = &cfg.telemetry.domain_id;
+    if (cfg.telemetry.has_interface) req.config_interface = &cfg.telemetry.interface;
+    req.config_localhost_only = cfg.telemetry.localhost_only;
+    req.config_peers = cfg.telemetry.peers;
+    telemetry::DomainChoice choice;
+    try {
+      choice = telemetry::resolve_domain(req, [](const char* v) { return std::getenv(v); });
+    } catch (const std::invalid_argument& e) {
+      throw BadInput(e.what());
+    }
     telemetry::TelemetryConfig tc;
-    tc.domain_id = cfg.telemetry.domain_id;
-    tc.interface = cfg.telemetry.interface;
-    tc.peers = cfg.telemetry.peers;
+    tc.domain_id = choice.domain.domain_id;
+    tc.interface = choice.domain.interface;
+    tc.peers = choice.domain.peers;
+    tc.robot_name = cfg.name;
+    tc.ros_namespace = cfg.telemetry.ros_namespace;
+    tc.stamp_clock = cfg.telemetry.realtime_stamps ? telemetry::StampClock::kRealtime
+                                                   : telemetry::StampClock::kMonotonic;
+    tc.standard_topics = cfg.telemetry.standard_topics;
     tc.decimation = {cfg.telemetry.decimation_state, cfg.telemetry.decimation_state,
                      cfg.telemetry.decimation_state, cfg.telemetry.decimation_timing};
     tc.enable_commands = cfg.telemetry.commands;
@@ -499,7 +520,14 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
         tc, [rtp](const runtime::OperatorCommand& c) { return rtp->post(c); });
     sinks.push_back(dds.get());
     res.telemetry_active = true;
+    telemetry_line = "DDS domain " + std::to_string(tc.domain_id) + " (" + choice.domain_source +
+                     "), namespace " + tc.effective_namespace() + ", discovery " +
+                     (tc.interface.empty() ? std::string("Cyclone's choice of interface")
+                                           : "on " + tc.interface) +
+                     " (" + choice.discovery_source + ")";
   }
+#else
+  const std::string telemetry_line = "off";
 #endif
   out << "pedalwave runtime '" << cfg.name << "': driver " << config::to_string(cfg.driver.kind)
       << (cfg.driver.kind == config::DriverKind::kSim ? " (scene " + cfg.driver.scene.name + ")" : "")
@@ -509,7 +537,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
       << ", PD " << (cfg.controller.pd.placement == control::PdPlacement::kModule ? "module-side" : "host-side")
       << ", k_c = " << cfg.controller.admittance.k_c << ", observer "
       << (observer ? "on" : "off") << ", telemetry "
-      << (res.telemetry_active ? "DDS domain " + std::to_string(cfg.telemetry.domain_id) + " on " + cfg.telemetry.interface : std::string("off"))
+      << telemetry_line
       << "\n";
   out << "timeouts: " << cfg.timing_note << "\n" << std::flush;
 

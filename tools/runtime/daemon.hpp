@@ -8,6 +8,7 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -37,6 +38,8 @@ struct DaemonOptions {
   // /var/lib/pedalwave); empty = off (development runs). A marker left by an earlier run means it
   // did not end in order: this run does not auto-start and stays READY until an operator starts it.
   std::string state_dir{};
+  // --domain: the DDS domain, over the file's telemetry.domain_id and ROS_DOMAIN_ID.
+  std::optional<std::uint32_t> domain{};
 };
 
 struct DaemonResult {

@@ -56,6 +56,10 @@ int main(int argc, char** argv) {
                "validate the configuration file only (no devices, interfaces or folders: a build or "
                "packaging machine without the robot), then exit");
   cli.add_flag("--no-telemetry", no_telemetry, "do not start DDS telemetry");
+  std::optional<std::uint32_t> domain;
+  cli.add_option("--domain", domain,
+                 "DDS domain id (0 … 232), over the file's telemetry.domain_id and ROS_DOMAIN_ID")
+      ->check(CLI::Range(0, 232));
   if (const auto rc = cli::parse(cli, argc, argv, kTool)) return *rc;
 
   pedalwave::config::DaemonConfig cfg;
@@ -81,6 +85,7 @@ int main(int argc, char** argv) {
   app::DaemonOptions opt;
   opt.plots_dir = plots_dir;
   opt.telemetry = !no_telemetry;
+  opt.domain = domain;
   opt.report_json = report_json;
   opt.state_dir = state_dir;
   if (check_only || check_config) {

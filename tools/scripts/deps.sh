@@ -8,6 +8,9 @@ pkgs=(cmake ninja-build g++ clang libeigen3-dev libspdlog-dev libyaml-cpp-dev li
       libzstd-dev liblz4-dev pkg-config  # pedalwave::mcap (MCAP chunk compression)
       dpkg-dev file adduser systemd)  # the Debian package: dpkg-shlibdeps, CPack's ELF check,
                                       # the service user, systemd-analyze verify of the unit
+# ROS 2 .msg -> IDL at build time (rosidl_adapter needs empy and lark), and the cross-host
+# telemetry test's network namespaces (ip netns, veth).
+pkgs+=(python3-rosidl rosidl-tools python3-empy python3-lark iproute2)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

@@ -8,17 +8,6 @@
 namespace pedalwave::telemetry::detail {
 namespace {
 
-// A sequence viewing n entries of a (const) array; _release = false: Cyclone never frees it.
-template <std::size_t M>
-dds_sequence_double view(const std::array<double, M>& a, int n) noexcept {
-  dds_sequence_double s{};
-  s._maximum = static_cast<std::uint32_t>(n);
-  s._length = static_cast<std::uint32_t>(n);
-  s._buffer = const_cast<double*>(a.data());  // NOLINT: read-only use by dds_write
-  s._release = false;
-  return s;
-}
-
 std::vector<double> copy(const dds_sequence_double& s) {
   if (s._buffer == nullptr) return {};
   return std::vector<double>(s._buffer, s._buffer + s._length);
@@ -35,8 +24,31 @@ std::uint8_t u8(auto e) noexcept { return static_cast<std::uint8_t>(e); }
 
 int clamp_joints(int joints) noexcept { return std::clamp(joints, 0, runtime::kMaxJoints); }
 
-void fill(const runtime::CycleSample& s, pedalwave_msg_dds__JointState_& m) noexcept {
+builtin_interfaces_msg_dds__Time_ ros_time(std::int64_t ns) noexcept {
+  // builtin_interfaces/Time: sec (int32) + nanosec in [0, 1e9), also for negative times.
+  std::int64_t sec = ns / 1'000'000'000;
+  std::int64_t nsec = ns % 1'000'000'000;
+  if (nsec < 0) {
+    nsec += 1'000'000'000;
+    --sec;
+  }
+  return {static_cast<std::int32_t>(sec), static_cast<std::uint32_t>(nsec)};
+}
+
+std::int64_t stamp_ns(const builtin_interfaces_msg_dds__Time_& t) noexcept {
+  return static_cast<std::int64_t>(t.sec) * 1'000'000'000 + static_cast<std::int64_t>(t.nanosec);
+}
+
+void fill_header(const HeaderContext& h, std::int64_t t_ns,
+                 std_msgs_msg_dds__Header_& m) noexcept {
+  m.stamp = ros_time(t_ns + h.offset_ns);
+  m.frame_id = const_cast<char*>(h.frame_id);  // NOLINT: read-only use by dds_write
+}
+
+void fill(const runtime::CycleSample& s, const HeaderContext& h,
+          pedalwave_msg_dds__JointState_& m) noexcept {
   const int n = clamp_joints(s.joints);
+  fill_header(h, s.t_ns, m.header);
   m.seq = s.seq;
   m.stamp_ns = s.t_ns;
   m.t = s.t;
@@ -47,8 +59,10 @@ void fill(const runtime::CycleSample& s, pedalwave_msg_dds__JointState_& m) noex
   m.tau_sea = view(s.tau_sea, n);
 }
 
-void fill(const runtime::CycleSample& s, pedalwave_msg_dds__ControllerState_& m) noexcept {
+void fill(const runtime::CycleSample& s, const HeaderContext& h,
+          pedalwave_msg_dds__ControllerState_& m) noexcept {
   const int n = clamp_joints(s.joints);
+  fill_header(h, s.t_ns, m.header);
   m.seq = s.seq;
   m.stamp_ns = s.t_ns;
   m.t = s.t;
@@ -59,8 +73,10 @@ void fill(const runtime::CycleSample& s, pedalwave_msg_dds__ControllerState_& m)
   m.u = view(s.u, n);
 }
 
-void fill(const runtime::CycleSample& s, pedalwave_msg_dds__ObserverState_& m) noexcept {
+void fill(const runtime::CycleSample& s, const HeaderContext& h,
+          pedalwave_msg_dds__ObserverState_& m) noexcept {
   const int n = clamp_joints(s.joints);
+  fill_header(h, s.t_ns, m.header);
   m.seq = s.seq;
   m.stamp_ns = s.t_ns;
   m.residual = view(s.residual, n);
@@ -71,7 +87,9 @@ void fill(const runtime::CycleSample& s, pedalwave_msg_dds__ObserverState_& m) n
   m.forward_speed = s.forward_speed;
 }
 
-void fill(const runtime::CycleSample& s, pedalwave_msg_dds__LoopTiming_& m) noexcept {
+void fill(const runtime::CycleSample& s, const HeaderContext& h,
+          pedalwave_msg_dds__LoopTiming_& m) noexcept {
+  fill_header(h, s.t_ns, m.header);
   m.seq = s.seq;
   m.stamp_ns = s.t_ns;
   m.wake_latency_ns = s.wake_latency_ns;
@@ -83,7 +101,12 @@ void fill(const runtime::CycleSample& s, pedalwave_msg_dds__LoopTiming_& m) noex
   m.ring_drops = s.ring_drops;
 }
 
-void fill(const runtime::EventSample& e, pedalwave_msg_dds__ModeEvent_& m) noexcept {
+void fill(const runtime::EventSample& e, const HeaderContext& h, std::uint64_t event_seq,
+          pedalwave_msg_dds__ModeEvent_& m) noexcept {
+  fill_header(h, e.t_ns, m.header);
+  m.event_seq = event_seq;
+  m.value = e.value;
+  m.severity = u8(e.severity);
   m.seq = e.seq;
   m.stamp_ns = e.t_ns;
   m.from_mode = u8(e.from);
@@ -97,7 +120,10 @@ void fill(const runtime::EventSample& e, pedalwave_msg_dds__ModeEvent_& m) noexc
   copy_bounded(m.text, text);
 }
 
-void fill(const runtime::EventSample& e, pedalwave_msg_dds__FaultEvent_& m) noexcept {
+void fill(const runtime::EventSample& e, const HeaderContext& h, std::uint64_t event_seq,
+          pedalwave_msg_dds__FaultEvent_& m) noexcept {
+  fill_header(h, e.t_ns, m.header);
+  m.event_seq = event_seq;
   m.seq = e.seq;
   m.stamp_ns = e.t_ns;
   m.fault_class = u8(e.fault);
@@ -114,8 +140,9 @@ void fill(const runtime::EventSample& e, pedalwave_msg_dds__FaultEvent_& m) noex
   copy_bounded(m.text, text);
 }
 
-void fill(const runtime::RobotDescription& d, const Decimation& dec,
+void fill(const runtime::RobotDescription& d, const Decimation& dec, const char* ros_namespace,
           pedalwave_msg_dds__RobotDescription_& m) noexcept {
+  copy_bounded(m.ros_namespace, ros_namespace);
   m.links = d.links;
   m.link_length = d.link_length;
   m.link_mass = d.link_mass;
@@ -138,8 +165,9 @@ void fill(const runtime::RobotDescription& d, const Decimation& dec,
   copy_bounded(m.driver, driver);
 }
 
-void fill(const runtime::OperatorCommand& c, const char* sender,
+void fill(const runtime::OperatorCommand& c, const char* target, const char* sender,
           pedalwave_msg_dds__OperatorCommand_& m) noexcept {
+  copy_bounded(m.target, target);
   m.kind = u8(c.kind);
   m.id = c.id;
   m.amplitude = c.amplitude;
@@ -149,19 +177,38 @@ void fill(const runtime::OperatorCommand& c, const char* sender,
 }
 
 JointStateMsg decode(const pedalwave_msg_dds__JointState_& m) {
-  return {m.seq, m.stamp_ns, m.t, copy(m.beta), copy(m.beta_dot), copy(m.alpha),
-          copy(m.deflection), copy(m.tau_sea)};
+  JointStateMsg o;
+  o.seq = m.seq;
+  o.stamp_ns = m.stamp_ns;
+  o.ros_stamp_ns = stamp_ns(m.header.stamp);
+  o.t = m.t;
+  o.beta = copy(m.beta);
+  o.beta_dot = copy(m.beta_dot);
+  o.alpha = copy(m.alpha);
+  o.deflection = copy(m.deflection);
+  o.tau_sea = copy(m.tau_sea);
+  return o;
 }
 
 ControllerStateMsg decode(const pedalwave_msg_dds__ControllerState_& m) {
-  return {m.seq, m.stamp_ns, m.t, m.mode, str(m.mode_name), copy(m.alpha_d), copy(m.pi),
-          copy(m.u)};
+  ControllerStateMsg o;
+  o.seq = m.seq;
+  o.stamp_ns = m.stamp_ns;
+  o.ros_stamp_ns = stamp_ns(m.header.stamp);
+  o.t = m.t;
+  o.mode = m.mode;
+  o.mode_name = str(m.mode_name);
+  o.alpha_d = copy(m.alpha_d);
+  o.pi = copy(m.pi);
+  o.u = copy(m.u);
+  return o;
 }
 
 ObserverStateMsg decode(const pedalwave_msg_dds__ObserverState_& m) {
   ObserverStateMsg o;
   o.seq = m.seq;
   o.stamp_ns = m.stamp_ns;
+  o.ros_stamp_ns = stamp_ns(m.header.stamp);
   o.residual = copy(m.residual);
   o.tau_ext = copy(m.tau_ext);
   std::copy(std::begin(m.body), std::end(m.body), o.body.begin());
@@ -172,18 +219,52 @@ ObserverStateMsg decode(const pedalwave_msg_dds__ObserverState_& m) {
 }
 
 LoopTimingMsg decode(const pedalwave_msg_dds__LoopTiming_& m) {
-  return {m.seq,          m.stamp_ns,     m.wake_latency_ns, m.t_read_ns, m.t_observe_ns,
-          m.t_control_ns, m.t_write_ns,   m.overruns,        m.ring_drops};
+  LoopTimingMsg o;
+  o.seq = m.seq;
+  o.stamp_ns = m.stamp_ns;
+  o.ros_stamp_ns = stamp_ns(m.header.stamp);
+  o.wake_latency_ns = m.wake_latency_ns;
+  o.t_read_ns = m.t_read_ns;
+  o.t_observe_ns = m.t_observe_ns;
+  o.t_control_ns = m.t_control_ns;
+  o.t_write_ns = m.t_write_ns;
+  o.overruns = m.overruns;
+  o.ring_drops = m.ring_drops;
+  return o;
 }
 
 ModeEventMsg decode(const pedalwave_msg_dds__ModeEvent_& m) {
-  return {m.seq, m.stamp_ns, m.from_mode, m.to_mode, str(m.from_name), str(m.to_name),
-          str(m.text)};
+  ModeEventMsg o;
+  o.event_seq = m.event_seq;
+  o.seq = m.seq;
+  o.stamp_ns = m.stamp_ns;
+  o.ros_stamp_ns = stamp_ns(m.header.stamp);
+  o.from = m.from_mode;
+  o.to = m.to_mode;
+  o.from_name = str(m.from_name);
+  o.to_name = str(m.to_name);
+  o.text = str(m.text);
+  o.value = m.value;
+  o.severity = m.severity;
+  return o;
 }
 
 FaultEventMsg decode(const pedalwave_msg_dds__FaultEvent_& m) {
-  return {m.seq,   m.stamp_ns, m.fault_class, str(m.class_name), m.severity, str(m.severity_name),
-          m.joint, m.value,    m.threshold,   m.mode,            str(m.text)};
+  FaultEventMsg o;
+  o.event_seq = m.event_seq;
+  o.seq = m.seq;
+  o.stamp_ns = m.stamp_ns;
+  o.ros_stamp_ns = stamp_ns(m.header.stamp);
+  o.fault_class = m.fault_class;
+  o.class_name = str(m.class_name);
+  o.severity = m.severity;
+  o.severity_name = str(m.severity_name);
+  o.joint = m.joint;
+  o.value = m.value;
+  o.threshold = m.threshold;
+  o.mode = m.mode;
+  o.text = str(m.text);
+  return o;
 }
 
 DescriptionMsg decode(const pedalwave_msg_dds__RobotDescription_& m) {
@@ -202,15 +283,83 @@ DescriptionMsg decode(const pedalwave_msg_dds__RobotDescription_& m) {
   d.loop_timing_rate_hz = m.loop_timing_rate_hz;
   d.name = str(m.name);
   d.driver = str(m.driver);
+  d.ros_namespace = str(m.ros_namespace);
   return d;
 }
 
 CommandAckMsg decode(const pedalwave_msg_dds__CommandAck_& m) {
-  return {m.id, m.kind, m.accepted, m.stamp_ns, str(m.reason)};
+  CommandAckMsg o;
+  o.robot = str(m.robot);
+  o.id = m.id;
+  o.kind = m.kind;
+  o.status = m.status <= 2 ? static_cast<AckStatus>(m.status) : AckStatus::kRejected;
+  o.stamp_ns = m.stamp_ns;
+  o.reason = str(m.reason);
+  return o;
 }
 
 OperatorCommandMsg decode(const pedalwave_msg_dds__OperatorCommand_& m) {
-  return {m.kind, m.id, m.amplitude, m.omega, m.eta, str(m.sender)};
+  OperatorCommandMsg o;
+  o.target = str(m.target);
+  o.kind = m.kind;
+  o.id = m.id;
+  o.amplitude = m.amplitude;
+  o.omega = m.omega;
+  o.eta = m.eta;
+  o.sender = str(m.sender);
+  return o;
+}
+
+namespace {
+std::string cstr(const char* s) { return s != nullptr ? std::string(s) : std::string(); }
+}  // namespace
+
+std::string decode(const std_msgs_msg_dds__String_& m) { return cstr(m.data); }
+
+RosJointStatesMsg decode(const sensor_msgs_msg_dds__JointState_& m) {
+  RosJointStatesMsg o;
+  o.stamp_ns = stamp_ns(m.header.stamp);
+  o.frame_id = cstr(m.header.frame_id);
+  for (std::uint32_t i = 0; i < m.name._length; ++i) o.name.push_back(cstr(m.name._buffer[i]));
+  o.position = copy(m.position);
+  o.velocity = copy(m.velocity);
+  o.effort = copy(m.effort);
+  return o;
+}
+
+DiagnosticArrayMsg decode(const diagnostic_msgs_msg_dds__DiagnosticArray_& m) {
+  DiagnosticArrayMsg o;
+  o.stamp_ns = stamp_ns(m.header.stamp);
+  for (std::uint32_t i = 0; i < m.status._length; ++i) {
+    const auto& c = m.status._buffer[i];
+    DiagnosticStatusMsg st;
+    st.level = c.level;
+    st.name = cstr(c.name);
+    st.message = cstr(c.message);
+    st.hardware_id = cstr(c.hardware_id);
+    for (std::uint32_t k = 0; k < c.values._length; ++k) {
+      st.values.emplace_back(cstr(c.values._buffer[k].key), cstr(c.values._buffer[k].value));
+    }
+    o.status.push_back(std::move(st));
+  }
+  return o;
+}
+
+TfMsg decode(const tf2_msgs_msg_dds__TFMessage_& m) {
+  TfMsg o;
+  for (std::uint32_t i = 0; i < m.transforms._length; ++i) {
+    const auto& t = m.transforms._buffer[i];
+    TransformMsg x;
+    x.stamp_ns = stamp_ns(t.header.stamp);
+    x.parent = cstr(t.header.frame_id);
+    x.child = cstr(t.child_frame_id);
+    x.translation = {t.transform.translation.x, t.transform.translation.y,
+                     t.transform.translation.z};
+    x.rotation = {t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
+                  t.transform.rotation.w};
+    o.transforms.push_back(std::move(x));
+  }
+  return o;
 }
 
 runtime::OperatorCommand to_command(const pedalwave_msg_dds__OperatorCommand_& m) noexcept {

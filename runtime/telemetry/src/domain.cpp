@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <cstdlib>
 #include <map>
 #include <mutex>
 #include <stdexcept>
@@ -34,7 +36,7 @@ Domain::~Domain() {
 
 std::shared_ptr<Domain> acquire_domain(const DomainConfig& d) {
   validate(d);
-  const std::string xml = cyclone_config_xml(d);
+  const std::string xml = cyclone_config_xml(d, std::getenv("CYCLONEDDS_URI"));
   std::unique_lock lock(g_mutex);
   if (auto existing = g_domains[d.domain_id].lock()) {
     if (existing->xml_ != xml) {
@@ -73,6 +75,23 @@ std::shared_ptr<Domain> acquire_domain(const DomainConfig& d) {
   return dom;
 }
 
+TopicNames::TopicNames(const std::string& ns) {
+  const std::string p = "rt" + ns + "/pedalwave/";
+  joint_state = p + "joint_state";
+  controller_state = p + "controller_state";
+  observer_state = p + "observer_state";
+  loop_timing = p + "loop_timing";
+  mode_event = p + "mode_event";
+  fault_event = p + "fault_event";
+  description = p + "robot_description";
+  command = "rt/pedalwave/command";
+  command_ack = "rt/pedalwave/command_ack";
+  joint_states = "rt" + ns + "/joint_states";
+  robot_description_urdf = "rt" + ns + "/robot_description";
+  diagnostics = "rt/diagnostics";
+  tf = "rt/tf";
+}
+
 dds_qos_t* make_qos(QosClass c, int state_depth) {
   dds_qos_t* q = dds_create_qos();
   switch (c) {
@@ -103,7 +122,16 @@ dds_qos_t* make_qos(QosClass c, int state_depth) {
       dds_qset_durability(q, DDS_DURABILITY_VOLATILE);
       dds_qset_history(q, DDS_HISTORY_KEEP_LAST, kCommandDepth);
       break;
+    case QosClass::kRos:
+      dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_MSECS(10));
+      dds_qset_durability(q, DDS_DURABILITY_VOLATILE);
+      // ROS's default depth 10 for writers; a reader keeps its state_history_depth (history
+      // depth is not matched between writer and reader).
+      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, std::max(state_depth, 10));
+      break;
   }
+  const dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;
+  dds_qset_data_representation(q, 1, &xcdr1);
   return q;
 }
 

@@ -61,16 +61,17 @@ std::shared_ptr<Domain> acquire_domain(const DomainConfig& d);
 // Checks a DDS return code; throws std::runtime_error naming `what` on error.
 dds_entity_t check(dds_entity_t rc, const char* what);
 
-// Topic names ("rt/" prefix: ROS 2 convention).
-inline constexpr const char* kTopicJointState = "rt/pedalwave/joint_state";
-inline constexpr const char* kTopicControllerState = "rt/pedalwave/controller_state";
-inline constexpr const char* kTopicObserverState = "rt/pedalwave/observer_state";
-inline constexpr const char* kTopicLoopTiming = "rt/pedalwave/loop_timing";
-inline constexpr const char* kTopicModeEvent = "rt/pedalwave/mode_event";
-inline constexpr const char* kTopicFaultEvent = "rt/pedalwave/fault_event";
-inline constexpr const char* kTopicDescription = "rt/pedalwave/robot_description";
-inline constexpr const char* kTopicCommand = "rt/pedalwave/command";
-inline constexpr const char* kTopicCommandAck = "rt/pedalwave/command_ack";
+// DDS topic names of one robot (ROS 2 convention: DDS name = "rt" + ROS name). `ns` is the
+// robot's ROS namespace ("/snake1", or "" for the root). Per-robot topics live under it; the
+// operator command topics and /diagnostics, /tf are shared by all robots of a domain.
+struct TopicNames {
+  explicit TopicNames(const std::string& ns);
+  std::string joint_state, controller_state, observer_state, loop_timing;   // rt<ns>/pedalwave/...
+  std::string mode_event, fault_event, description;
+  std::string command, command_ack;                  // rt/pedalwave/command, rt/pedalwave/command_ack
+  std::string joint_states, robot_description_urdf;  // rt<ns>/joint_states, rt<ns>/robot_description
+  std::string diagnostics, tf;                        // rt/diagnostics, rt/tf
+};
 
 // QoS classes (README.md "QoS"):
 //   state:       best-effort, volatile, keep-last(depth)
@@ -80,7 +81,10 @@ inline constexpr const char* kTopicCommandAck = "rt/pedalwave/command_ack";
 inline constexpr int kStateWriterDepth = 4;
 inline constexpr int kEventDepth = 100;
 inline constexpr int kCommandDepth = 16;
-enum class QosClass { kState, kEvent, kDescription, kCommand };
+//   ros:         reliable, volatile, keep-last(10; a reader max(10, state_depth))   (ROS 2's default profile: what
+//                robot_state_publisher, RViz and `ros2 topic echo` match; max blocking 10 ms)
+// Every class asks for XCDR1, the data representation rmw_cyclonedds uses.
+enum class QosClass { kState, kEvent, kDescription, kCommand, kRos };
 // A new dds_qos_t (caller deletes with dds_delete_qos). `state_depth` only for kState.
 dds_qos_t* make_qos(QosClass c, int state_depth = kStateWriterDepth);
 

@@ -96,6 +96,7 @@ void MonitorState::on_joint_state(const JointStateMsg& m, const MessageInfo& i) 
 }
 
 void MonitorState::on_controller_state(const ControllerStateMsg& m, const MessageInfo& i) {
+  last_mode_name_ = m.mode_name;
   controller_ = m;
   sample_arrived(kController, i);
 }
@@ -110,13 +111,28 @@ void MonitorState::on_loop_timing(const LoopTimingMsg& m, const MessageInfo& i) 
   sample_arrived(kTiming, i);
 }
 
+void MonitorState::event_arrived(std::uint64_t& last, std::uint64_t event_seq,
+                                 const MessageInfo& i, const char* topic) {
+  // event_seq runs 1, 2, ... per robot run; a jump forward is lost events (a restart starts
+  // again at 1; a late joiner's first event may be any number).
+  if (last != 0 && event_seq > last + 1) {
+    event_gaps_ += event_seq - last - 1;
+    notice(i.recv_ns, fmt::format("LOST {} {} event(s) (event_seq {} after {})",
+                                  event_seq - last - 1, topic, event_seq, last));
+  }
+  last = event_seq;
+}
+
 void MonitorState::on_mode_event(const ModeEventMsg& m, const MessageInfo& i) {
   last_mode_event_ = m;
+  event_arrived(last_mode_seq_, m.event_seq, i, "mode");
+  if (m.from != m.to) last_mode_name_ = m.to_name;
   notice(i.recv_ns, fmt::format("mode {} -> {}{}{}", m.from_name, m.to_name,
                                 m.text.empty() ? "" : ": ", m.text));
 }
 
 void MonitorState::on_fault_event(const FaultEventMsg& m, const MessageInfo& i) {
+  event_arrived(last_fault_seq_, m.event_seq, i, "fault");
   faults_.push_back(m);
   while (faults_.size() > kMaxFaults) faults_.pop_front();
   notice(i.recv_ns, fmt::format("FAULT {} ({}) joint {}: value {:.4g} vs threshold {:.4g}{}{}",
@@ -132,8 +148,9 @@ void MonitorState::on_description(const DescriptionMsg& m, const MessageInfo& i)
 
 void MonitorState::on_command_ack(const CommandAckMsg& m, const MessageInfo& i) {
   last_ack_ = m;
-  notice(i.recv_ns, fmt::format("command {} id {} {}: {}", command_kind_name(m.kind), m.id,
-                                m.accepted ? "accepted" : "REJECTED", m.reason));
+  notice(i.recv_ns, fmt::format("command {} id {} {}{}: {}", command_kind_name(m.kind), m.id,
+                                m.status == AckStatus::kRejected ? "REJECTED" : to_string(m.status),
+                                m.robot.empty() ? "" : " by " + m.robot, m.reason));
 }
 
 void MonitorState::tick(std::int64_t now_ns) {
@@ -194,11 +211,15 @@ std::string MonitorState::render(std::int64_t now_ns, bool ansi) const {
                      st.reset(), status));
   }
 
-  // Mode, time, speed, faults.
+  // Mode, time, speed, faults. A silent robot's mode is only what it last said.
   if (controller_) {
-    const bool bad = controller_->mode_name == "fault" || controller_->mode_name == "safe_stop";
-    line(fmt::format("mode {}{}{}   t = {:.3f} s   seq {}   forward speed {} m/s",
-                     bad ? st.red() : st.green(), controller_->mode_name, st.reset(),
+    const std::string& mode = last_mode_name_.empty() ? controller_->mode_name : last_mode_name_;
+    const bool bad = mode == "fault" || mode == "safe_stop";
+    const bool silent = silence_.silent();
+    line(fmt::format("{} {}{}{}   t = {:.3f} s   seq {}   forward speed {} m/s",
+                     silent ? "mode (last seen)" : "mode", silent ? st.yellow()
+                                                                  : (bad ? st.red() : st.green()),
+                     mode, st.reset(),
                      controller_->t, controller_->seq,
                      observer_ ? fmt::format("{:+.4f}", observer_->forward_speed)
                                : std::string("?")));

@@ -1,4 +1,5 @@
 #include "pedalwave/telemetry/names.hpp"
+#include "pedalwave/telemetry/messages.hpp"
 
 #include <array>
 
@@ -72,4 +73,15 @@ std::string fault_flags_names(std::uint32_t flags) {
   return out;
 }
 
+}  // namespace pedalwave::telemetry
+
+namespace pedalwave::telemetry {
+const char* to_string(AckStatus s) noexcept {
+  switch (s) {
+    case AckStatus::kRejected: return "rejected";
+    case AckStatus::kQueued: return "queued";
+    case AckStatus::kExecuted: return "executed";
+  }
+  return "?";
+}
 }  // namespace pedalwave::telemetry

@@ -167,26 +167,29 @@ void CsvRecorder::on_loop_timing(const LoopTimingMsg& m, const MessageInfo& i) {
 void CsvRecorder::on_mode_event(const ModeEventMsg& m, const MessageInfo& i) {
   File& f = file("mode_event");
   if (!f.header_written) {
-    write_row(f, fmt::format("{},seq,stamp_ns,from,from_name,to,to_name,text", kInfoHeader));
+    write_row(f, fmt::format("{},seq,stamp_ns,from,from_name,to,to_name,text,event_seq,value,"
+                             "severity", kInfoHeader));
     f.rows = 0;
     f.header_written = true;
   }
-  write_row(f, prefix(i) + fmt::format(",{},{},{},{},{},{},{}", m.seq, m.stamp_ns, m.from,
-                                       m.from_name, m.to, m.to_name, quoted(m.text)));
+  write_row(f, prefix(i) + fmt::format(",{},{},{},{},{},{},{},{},{},{}", m.seq, m.stamp_ns, m.from,
+                                       m.from_name, m.to, m.to_name, quoted(m.text), m.event_seq,
+                                       m.value, m.severity));
 }
 
 void CsvRecorder::on_fault_event(const FaultEventMsg& m, const MessageInfo& i) {
   File& f = file("fault_event");
   if (!f.header_written) {
     write_row(f, fmt::format("{},seq,stamp_ns,fault_class,class_name,severity,severity_name,"
-                             "joint,value,threshold,mode,text",
+                             "joint,value,threshold,mode,text,event_seq",
                              kInfoHeader));
     f.rows = 0;
     f.header_written = true;
   }
-  write_row(f, prefix(i) + fmt::format(",{},{},{},{},{},{},{},{},{},{},{}", m.seq, m.stamp_ns,
+  write_row(f, prefix(i) + fmt::format(",{},{},{},{},{},{},{},{},{},{},{},{}", m.seq, m.stamp_ns,
                                        m.fault_class, m.class_name, m.severity, m.severity_name,
-                                       m.joint, m.value, m.threshold, m.mode, quoted(m.text)));
+                                       m.joint, m.value, m.threshold, m.mode, quoted(m.text),
+                                       m.event_seq));
 }
 
 void CsvRecorder::on_description(const DescriptionMsg& m, const MessageInfo& i) {
@@ -215,25 +218,26 @@ void CsvRecorder::on_description(const DescriptionMsg& m, const MessageInfo& i) 
 void CsvRecorder::on_command(const OperatorCommandMsg& m, const MessageInfo& i) {
   File& f = file("command");
   if (!f.header_written) {
-    write_row(f, fmt::format("{},id,kind,kind_name,amplitude,omega,eta,sender", kInfoHeader));
+    write_row(f, fmt::format("{},id,kind,kind_name,amplitude,omega,eta,sender,target",
+                             kInfoHeader));
     f.rows = 0;
     f.header_written = true;
   }
-  write_row(f, prefix(i) + fmt::format(",{},{},{},{},{},{},{}", m.id, m.kind,
+  write_row(f, prefix(i) + fmt::format(",{},{},{},{},{},{},{},{}", m.id, m.kind,
                                        command_kind_name(m.kind), m.amplitude, m.omega, m.eta,
-                                       quoted(m.sender)));
+                                       quoted(m.sender), quoted(m.target)));
 }
 
 void CsvRecorder::on_command_ack(const CommandAckMsg& m, const MessageInfo& i) {
   File& f = file("command_ack");
   if (!f.header_written) {
-    write_row(f, fmt::format("{},id,kind,kind_name,accepted,stamp_ns,reason", kInfoHeader));
+    write_row(f, fmt::format("{},id,kind,kind_name,status,stamp_ns,reason,robot", kInfoHeader));
     f.rows = 0;
     f.header_written = true;
   }
-  write_row(f, prefix(i) + fmt::format(",{},{},{},{},{},{}", m.id, m.kind,
-                                       command_kind_name(m.kind), m.accepted ? 1 : 0,
-                                       m.stamp_ns, quoted(m.reason)));
+  write_row(f, prefix(i) + fmt::format(",{},{},{},{},{},{},{}", m.id, m.kind,
+                                       command_kind_name(m.kind), to_string(m.status),
+                                       m.stamp_ns, quoted(m.reason), quoted(m.robot)));
 }
 
 }  // namespace pedalwave::telemetry

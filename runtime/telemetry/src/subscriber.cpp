@@ -40,6 +40,7 @@ struct TelemetrySubscriber::Impl {
   std::size_t joint_reader_index = 0;   // readers[] slot of joint_state
   std::size_t ack_reader_index = 0;     // readers[] slot of command_ack
   std::vector<TelemetryListener*> listeners;
+  TopicNames topics{""};
 
   template <typename Msg, typename Decoded>
   void add_reader(const dds_topic_descriptor_t* desc, const char* name, QosClass qc,
@@ -75,41 +76,56 @@ TelemetrySubscriber::TelemetrySubscriber(const SubscriberConfig& config)
   m.waitset = check(dds_create_waitset(m.participant.get()), "dds_create_waitset");
 
   using L = TelemetryListener;
+  const TopicNames t(config.effective_namespace());
+  m.topics = t;
   // Description first: within one poll a listener sees it before the rest.
   m.add_reader<pedalwave_msg_dds__RobotDescription_>(&pedalwave_msg_dds__RobotDescription__desc,
-                                                     kTopicDescription, QosClass::kDescription,
+                                                     t.description.c_str(), QosClass::kDescription,
                                                      &L::on_description);
   m.joint_reader_index = m.readers.size();
   m.add_reader<pedalwave_msg_dds__JointState_>(&pedalwave_msg_dds__JointState__desc,
-                                               kTopicJointState, QosClass::kState,
+                                               t.joint_state.c_str(), QosClass::kState,
                                                &L::on_joint_state);
   m.add_reader<pedalwave_msg_dds__ControllerState_>(&pedalwave_msg_dds__ControllerState__desc,
-                                                    kTopicControllerState, QosClass::kState,
+                                                    t.controller_state.c_str(), QosClass::kState,
                                                     &L::on_controller_state);
   m.add_reader<pedalwave_msg_dds__ObserverState_>(&pedalwave_msg_dds__ObserverState__desc,
-                                                  kTopicObserverState, QosClass::kState,
+                                                  t.observer_state.c_str(), QosClass::kState,
                                                   &L::on_observer_state);
   m.add_reader<pedalwave_msg_dds__LoopTiming_>(&pedalwave_msg_dds__LoopTiming__desc,
-                                               kTopicLoopTiming, QosClass::kState,
+                                               t.loop_timing.c_str(), QosClass::kState,
                                                &L::on_loop_timing);
   m.add_reader<pedalwave_msg_dds__ModeEvent_>(&pedalwave_msg_dds__ModeEvent__desc,
-                                              kTopicModeEvent, QosClass::kEvent,
+                                              t.mode_event.c_str(), QosClass::kEvent,
                                               &L::on_mode_event);
   m.add_reader<pedalwave_msg_dds__FaultEvent_>(&pedalwave_msg_dds__FaultEvent__desc,
-                                               kTopicFaultEvent, QosClass::kEvent,
+                                               t.fault_event.c_str(), QosClass::kEvent,
                                                &L::on_fault_event);
   m.add_reader<pedalwave_msg_dds__OperatorCommand_>(&pedalwave_msg_dds__OperatorCommand__desc,
-                                                    kTopicCommand, QosClass::kCommand,
+                                                    t.command.c_str(), QosClass::kCommand,
                                                     &L::on_command);
   m.ack_reader_index = m.readers.size();
   m.add_reader<pedalwave_msg_dds__CommandAck_>(&pedalwave_msg_dds__CommandAck__desc,
-                                               kTopicCommandAck, QosClass::kCommand,
+                                               t.command_ack.c_str(), QosClass::kCommand,
                                                &L::on_command_ack);
+  if (config.standard_topics) {
+    m.add_reader<std_msgs_msg_dds__String_>(&std_msgs_msg_dds__String__desc,
+                                            t.robot_description_urdf.c_str(),
+                                            QosClass::kDescription, &L::on_urdf);
+    m.add_reader<sensor_msgs_msg_dds__JointState_>(&sensor_msgs_msg_dds__JointState__desc,
+                                                   t.joint_states.c_str(), QosClass::kRos,
+                                                   &L::on_joint_states);
+    m.add_reader<diagnostic_msgs_msg_dds__DiagnosticArray_>(
+        &diagnostic_msgs_msg_dds__DiagnosticArray__desc, t.diagnostics.c_str(), QosClass::kRos,
+        &L::on_diagnostics);
+    m.add_reader<tf2_msgs_msg_dds__TFMessage_>(&tf2_msgs_msg_dds__TFMessage__desc,
+                                               t.tf.c_str(), QosClass::kRos, &L::on_tf);
+  }
 
   // Command writer (same topic entity as the command reader: look it up by name).
   const dds_entity_t cmd_topic =
       check(dds_create_topic(m.participant.get(), &pedalwave_msg_dds__OperatorCommand__desc,
-                             kTopicCommand, nullptr, nullptr),
+                             t.command.c_str(), nullptr, nullptr),
             "dds_create_topic(command)");
   dds_qos_t* q = make_qos(QosClass::kCommand);
   m.w_cmd = dds_create_writer(m.participant.get(), cmd_topic, q, nullptr);
@@ -157,8 +173,13 @@ std::size_t TelemetrySubscriber::poll(std::chrono::nanoseconds timeout) {
 }
 
 bool TelemetrySubscriber::send_command(const runtime::OperatorCommand& c) {
+  return send_command(c, impl_->cfg.robot);
+}
+
+bool TelemetrySubscriber::send_command(const runtime::OperatorCommand& c,
+                                       const std::string& target) {
   pedalwave_msg_dds__OperatorCommand_ msg{};
-  fill(c, impl_->cfg.sender.c_str(), msg);
+  fill(c, target.c_str(), impl_->cfg.sender.c_str(), msg);
   return dds_write(impl_->w_cmd, &msg) == DDS_RETCODE_OK;
 }
 

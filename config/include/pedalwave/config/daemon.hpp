@@ -33,9 +33,18 @@ struct DriverSelection {
 
 struct TelemetrySection {
   bool enabled = false;
-  std::uint32_t domain_id = 0;        // DDS domain [-]
-  std::string interface = "lo";       // network interface ("lo" for the demo)
-  std::vector<std::string> peers;     // unicast peers (loopback discovery)
+  // Domain and discovery: what the file gives (the daemon resolves them with --domain and the
+  // ROS 2 environment, telemetry::resolve_domain). Unset: ROS_DOMAIN_ID / CYCLONEDDS_URI /
+  // ROS_LOCALHOST_ONLY, else domain 0 and Cyclone's choice of interface with multicast discovery.
+  bool has_domain_id = false;
+  std::uint32_t domain_id = 0;        // DDS domain [-] (when has_domain_id)
+  bool has_interface = false;
+  std::string interface;              // network interface (when has_interface)
+  bool localhost_only = false;        // lo with unicast discovery on 127.0.0.1: nothing leaves the host
+  std::vector<std::string> peers;     // extra unicast discovery peers
+  std::string ros_namespace;          // the robot's ROS namespace; "" = "/" + name (sanitized)
+  bool realtime_stamps = true;        // ROS header stamps: CLOCK_REALTIME (false: CLOCK_MONOTONIC)
+  bool standard_topics = true;        // joint_states, /diagnostics, robot_description, /tf
   int decimation_state = 10;          // joint/controller/observer state every n cycles [-]
   int decimation_timing = 10;         // loop timing every n cycles [-]
   bool commands = true;               // accept operator commands (e-stop always honoured)

@@ -46,6 +46,9 @@ class MonitorState final : public TelemetryListener {
   // At least one sample of each high-rate topic and the description: enough for --once.
   bool complete() const;
   std::uint32_t restarts() const { return restarts_; }
+  // Events known lost: the sum of the forward jumps of event_seq on mode_event and fault_event.
+  std::uint64_t event_gaps() const { return event_gaps_; }
+  const std::optional<CommandAckMsg>& last_ack() const { return last_ack_; }
   std::uint64_t received(int topic) const { return topics_.at(static_cast<std::size_t>(topic)).count; }
   double rate_hz(int topic) const { return topics_.at(static_cast<std::size_t>(topic)).rate_hz; }
   enum Topic : int { kJoint = 0, kController, kObserver, kTiming, kTopicCount };
@@ -58,6 +61,8 @@ class MonitorState final : public TelemetryListener {
     double rate_hz = 0.0;
   };
   void sample_arrived(Topic t, const MessageInfo& info);
+  void event_arrived(std::uint64_t& last, std::uint64_t event_seq, const MessageInfo& i,
+                     const char* topic);
   void notice(std::int64_t now_ns, std::string text);
 
   SilenceTracker silence_;
@@ -71,6 +76,9 @@ class MonitorState final : public TelemetryListener {
   std::optional<ModeEventMsg> last_mode_event_;
   std::deque<FaultEventMsg> faults_;          // most recent last, at most 5
   std::optional<CommandAckMsg> last_ack_;
+  std::string last_mode_name_;       // newest mode heard (controller_state or a mode event)
+  std::uint64_t last_mode_seq_ = 0, last_fault_seq_ = 0;   // event_seq of the last event
+  std::uint64_t event_gaps_ = 0;
   std::deque<std::string> notices_;
   std::vector<std::string> new_notices_;
   std::uint64_t publication_ = 0;

@@ -1,6 +1,8 @@
 // TelemetrySubscriber: the monitor side. Subscribes to every pedalwave topic on a domain, decodes
 // the messages (messages.hpp) and hands them to listeners on the caller's thread, inside poll().
-// Also publishes operator commands (rt/pedalwave/command) and receives their acks.
+// The robot's topics are those under its namespace (SubscriberConfig::robot / ros_namespace).
+// Also publishes operator commands (rt/pedalwave/command, addressed to the robot) and receives
+// the acks of every robot (CommandAckMsg::robot says which).
 // Reader QoS mirror the writer's (dds_telemetry.hpp): best-effort keep-last(state_history_depth)
 // on the high-rate topics, reliable transient-local on events and description (so a late
 // subscriber gets the description and the last 100 events), reliable volatile on command/ack.
@@ -32,6 +34,11 @@ class TelemetryListener {
   virtual void on_description(const DescriptionMsg&, const MessageInfo&) {}
   virtual void on_command(const OperatorCommandMsg&, const MessageInfo&) {}
   virtual void on_command_ack(const CommandAckMsg&, const MessageInfo&) {}
+  // The standard ROS 2 topics (SubscriberConfig::standard_topics).
+  virtual void on_urdf(const std::string& /*urdf*/, const MessageInfo&) {}
+  virtual void on_joint_states(const RosJointStatesMsg&, const MessageInfo&) {}
+  virtual void on_diagnostics(const DiagnosticArrayMsg&, const MessageInfo&) {}
+  virtual void on_tf(const TfMsg&, const MessageInfo&) {}
 };
 
 class TelemetrySubscriber {
@@ -51,8 +58,10 @@ class TelemetrySubscriber {
   // reader and dispatches it. Returns the number of messages dispatched (0 on timeout).
   std::size_t poll(std::chrono::nanoseconds timeout);
 
-  // Publishes an operator command; `id` is the caller's. Returns false if the write failed.
+  // Publishes an operator command addressed to `target` (a robot name or "*"; default: the
+  // configured robot); `id` is the caller's. Returns false if the write failed.
   bool send_command(const runtime::OperatorCommand& c);
+  bool send_command(const runtime::OperatorCommand& c, const std::string& target);
   // Waits until a robot's command reader is matched (commands are volatile: sent before the
   // match, they are lost). Returns false on timeout.
   bool wait_for_robot(std::chrono::nanoseconds timeout);

@@ -64,37 +64,51 @@ using MatL = Eigen::Matrix<LD, Eigen::Dynamic, Eigen::Dynamic>;
 VectorXd reference_qdd(const Model& m, const VectorXd& q, const VectorXd& v, const VectorXd& u,
                        const VectorXd& Q, double* cond = nullptr) {
   const Params& p = m.params();
-  const int N = m.N(), n = m.nq();
-  // ∂θ_i/∂q and the absolute angles, rates.
-  MatL dth = MatL::Zero(N, n);
-  for (int i = 0; i < N; ++i) {
-    for (int k = i; k < N - 1; ++k) dth(i, m.i_alpha(k)) = 1;
-    dth(i, m.i_theta_N()) = 1;
+  const int N = m.N(), n = m.nq(), n1 = m.nq1();
+  // θ_i = θ_N + Σ_{k≥i} α_k: ∂θ_i/∂q is 1 on α_i … α_{N-2} and θ_N (columns i … N-1).
+  VecL th(N), thd(N);
+  th(N - 1) = q(m.i_theta_N());
+  thd(N - 1) = v(m.i_theta_N());
+  for (int i = N - 2; i >= 0; --i) {
+    th(i) = th(i + 1) + LD(q(m.i_alpha(i)));
+    thd(i) = thd(i + 1) + LD(v(m.i_alpha(i)));
   }
-  const VecL th = dth * q.cast<LD>(), thd = dth * v.cast<LD>();
   MatL M = MatL::Zero(n, n);
   VecL bias = VecL::Zero(n);
-  MatL Jb(2, n);
+  // Point masses: position p + Σ_i c_bi e(θ_i); ∂/∂α_k = Σ_{i≤k} c_bi J e(θ_i) (k < N: α_k, θ_N),
+  // ∂/∂p = 1; J̇ q̇ = −Σ_i c_bi θ̇_i² e(θ_i). Only the first N+2 columns are nonzero.
+  MatL Jb(2, n1);
   for (int b = 0; b < m.points(); ++b) {
     const LD mb = m.point_mass()(b);
     if (mb == 0) continue;
-    Jb.setZero();
-    LD ax = 0, az = 0;  // J̇ q̇ = −Σ c θ̇² e(θ)
+    LD sx = 0, sz = 0, ax = 0, az = 0;
     for (int i = 0; i < N; ++i) {
       const LD c = m.point_coeff()(b, i), ci = std::cos(th(i)), si = std::sin(th(i));
-      Jb.row(0) += -c * si * dth.row(i);
-      Jb.row(1) += c * ci * dth.row(i);
+      sx -= c * si;
+      sz += c * ci;
+      Jb(0, i) = sx;
+      Jb(1, i) = sz;
       ax -= c * thd(i) * thd(i) * ci;
       az -= c * thd(i) * thd(i) * si;
     }
-    Jb(0, m.i_px()) = 1;
-    Jb(1, m.i_pz()) = 1;
-    M += mb * Jb.transpose() * Jb;
-    bias += mb * (Jb.row(0).transpose() * ax + Jb.row(1).transpose() * (az + LD(p.g)));
+    Jb(0, N) = 1, Jb(1, N) = 0, Jb(0, N + 1) = 0, Jb(1, N + 1) = 1;
+    for (int r = 0; r < n1; ++r) {
+      for (int c = 0; c < n1; ++c) M(r, c) += mb * (Jb(0, r) * Jb(0, c) + Jb(1, r) * Jb(1, c));
+      bias(r) += mb * (Jb(0, r) * ax + Jb(1, r) * (az + LD(p.g)));
+    }
   }
-  for (int i = 0; i < N; ++i) M += LD(p.I_l) * dth.row(i).transpose() * dth.row(i);
-  const MatL Lr = m.L().cast<LD>();  // rotor spin rates (exact small integers and n)
-  M += LD(p.I_r) * Lr.transpose() * Lr;
+  // Link rotation I_l θ̇_i², rotor spin I_r (L q̇)_j² (L: rotor spin map, exact small integers and n).
+  for (int i = 0; i < N; ++i)
+    for (int r = i; r < N; ++r)
+      for (int c = i; c < N; ++c) M(r, c) += LD(p.I_l);
+  for (int j = 0; j < m.joints(); ++j) {
+    int nz[kMaxLinks + 2], cnt = 0;
+    for (int c = 0; c < n; ++c)
+      if (m.L()(j, c) != 0.0) nz[cnt++] = c;
+    for (int a = 0; a < cnt; ++a)
+      for (int b = 0; b < cnt; ++b)
+        M(nz[a], nz[b]) += LD(p.I_r) * LD(m.L()(j, nz[a])) * LD(m.L()(j, nz[b]));
+  }
   VecL rhs = -bias;
   if (m.flexible())
     for (int j = 0; j < m.joints(); ++j) {
@@ -108,7 +122,7 @@ VectorXd reference_qdd(const Model& m, const VectorXd& q, const VectorXd& v, con
     const Eigen::SelfAdjointEigenSolver<MatrixXd> es(M.cast<double>());
     *cond = es.eigenvalues().maxCoeff() / es.eigenvalues().minCoeff();
   }
-  return M.partialPivLu().solve(rhs).cast<double>();
+  return M.llt().solve(rhs).cast<double>();
 }
 
 // Relative difference max|a − b| / max|b| (max(…, 1e-300) guards an all-zero b).

@@ -4,6 +4,9 @@
 // M: translational link+rotor inertia (W ∘ cos(θ_k − θ_l) in absolute coordinates, mapped by T),
 // link rotation I_l, rotor spin I_r Lᵀ L. B u: motor torque on the β rows (flexible) or α rows
 // (rigid). Q: any generalized external force (contact, friction, ...), nq.
+// Forward dynamics has two solvers (ForwardSolver): the O(N) articulated-body recursion, which
+// never forms M or the bias (the default, recursive_dynamics.cpp), and the staged dense solve below
+// (the reference, and what the energies, implicit integrators and linearization use).
 #pragma once
 
 #include <cstdint>
@@ -15,7 +18,7 @@ namespace pedalwave::model {
 
 // Factor M at the q given to the last update_kinematics, without assembling d.M: d.Mz holds the
 // body block Tᵀ Mz T and d.chol the Cholesky factor of its Schur complement (Model::spin_schur);
-// d.mass_valid tells whether M is positive definite. What forward dynamics needs.
+// d.mass_valid tells whether M is positive definite. What the dense forward dynamics needs.
 void factor_mass(const Model& m, Data& d);
 
 // factor_mass, and the whole nq×nq d.M assembled (energies, implicit integrators, linearization).

@@ -262,6 +262,8 @@ Run run_mujoco(const pm::Scene& s, const MjRobot& r, double h, double T) {
     }
     for (int i = 0; i < sub; ++i) mj_step(r.m, d);
     mj_kinematics(r.m, d);  // xipos at the new state
+    // MuJoCo resets the state when it diverges (and warns): that is a failed run.
+    if (d->warning[mjWARN_BADQACC].number > 0) out.ok = false;
     for (int i = 0; i < r.m->nq; ++i)
       if (!std::isfinite(d->qpos[i])) out.ok = false;
     record();

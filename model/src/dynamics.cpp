@@ -121,8 +121,17 @@ void compute_bias(const Model& m, Data& d, const Eigen::Ref<const VectorXd>& q) 
 
 bool forward_dynamics(const Model& m, Data& d, const Eigen::Ref<const VectorXd>& q,
                       const Eigen::Ref<const VectorXd>& qd, const Eigen::Ref<const VectorXd>& u,
-                      const Eigen::Ref<const VectorXd>& Q, Eigen::Ref<VectorXd> qdd) {
+                      const Eigen::Ref<const VectorXd>& Q, Eigen::Ref<VectorXd> qdd,
+                      ForwardSolver solver) {
   update_kinematics(m, d, q, qd);
+  return solve_forward_dynamics(m, d, q, qd, u, Q, qdd, solver);
+}
+
+bool solve_forward_dynamics(const Model& m, Data& d, const Eigen::Ref<const VectorXd>& q,
+                            const Eigen::Ref<const VectorXd>& qd, const Eigen::Ref<const VectorXd>& u,
+                            const Eigen::Ref<const VectorXd>& Q, Eigen::Ref<VectorXd> qdd,
+                            ForwardSolver solver) {
+  if (solver == ForwardSolver::kRecursive) return recursive_forward_dynamics(m, d, q, qd, u, Q, qdd);
   factor_mass(m, d);
   if (!d.mass_valid) return false;
   compute_bias(m, d, q);

@@ -75,6 +75,7 @@ Data::Data(const Model& m)
       bias(VectorXd::Zero(m.nq())),
       rhs(VectorXd::Zero(m.nq())),
       gz(VectorXd::Zero(m.nq1())),
-      chol(MatrixXd::Zero(m.nq1(), m.nq1())) {}
+      chol(MatrixXd::Zero(m.nq1(), m.nq1())),
+      links(static_cast<std::size_t>(m.N()), RecursiveLink{}) {}
 
 }  // namespace pedalwave::model

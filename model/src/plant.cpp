@@ -302,13 +302,8 @@ bool Plant::acceleration(double, const VectorXd& q, const VectorXd& v, VectorXd&
   Q_.setZero();
   contact_forces(q, v, Q_, nullptr, nullptr);
   fault_forces(q, Q_, nullptr);
-  factor_mass(m, data_);
-  if (!data_.mass_valid) return false;
-  compute_bias(m, data_, q);
-  a = Q_ - data_.bias;
-  a.segment(m.flexible() ? m.i_beta(0) : 0, m.joints()) += u_;
-  solve_mass(m, data_, a);
-  return true;
+  if (a.size() != m.nq()) a.resize(m.nq());  // once: integrators pass sized vectors
+  return solve_forward_dynamics(m, data_, q, v, u_, Q_, a, solver_);
 }
 
 bool Plant::implicit_terms(double, const VectorXd& q, const VectorXd& v, ImplicitTerms& out) {

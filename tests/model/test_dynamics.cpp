@@ -160,17 +160,22 @@ TEST_P(Dynamics, ForwardDynamicsSolvesTheEquationsAndAllocatesNothing) {
   std::mt19937 rng(15);
   const VectorXd q = random_q(m, rng), v = random_v(m, rng);
   VectorXd u = VectorXd::Random(m.joints()), Q = VectorXd::Random(m.nq()), a(m.nq());
-  ASSERT_TRUE(forward_dynamics(m, d, q, v, u, Q, a));  // warm-up
-  {
-    pedalwave::test::AllocationScope scope;
-    for (int i = 0; i < 100; ++i) ASSERT_TRUE(forward_dynamics(m, d, q, v, u, Q, a));
-    EXPECT_EQ(scope.count(), 0u) << "forward_dynamics allocated";
+  for (const ForwardSolver s : {ForwardSolver::kRecursive, ForwardSolver::kDense}) {
+    ASSERT_TRUE(forward_dynamics(m, d, q, v, u, Q, a, s));  // warm-up
+    {
+      pedalwave::test::AllocationScope scope;
+      for (int i = 0; i < 100; ++i) ASSERT_TRUE(forward_dynamics(m, d, q, v, u, Q, a, s));
+      EXPECT_EQ(scope.count(), 0u) << "forward_dynamics allocated";
+    }
+    // Residual of M a + bias − B u − Q, with the assembled M and the bias at (q, v) (forward
+    // dynamics only factors M, or with the recursive solver forms neither).
+    compute_mass_matrix(m, d);
+    compute_bias(m, d, q);
+    VectorXd Bu = VectorXd::Zero(m.nq());
+    Bu.segment(m.flexible() ? m.i_beta(0) : 0, m.joints()) = u;
+    EXPECT_LT((d.M * a + d.bias - Bu - Q).norm(), 1e-9 * (1 + Q.norm() + d.bias.norm()))
+        << (s == ForwardSolver::kDense ? "dense" : "recursive");
   }
-  // Residual of M a + bias − B u − Q, with the assembled M (forward dynamics only factors it).
-  compute_mass_matrix(m, d);
-  VectorXd Bu = VectorXd::Zero(m.nq());
-  Bu.segment(m.flexible() ? m.i_beta(0) : 0, m.joints()) = u;
-  EXPECT_LT((d.M * a + d.bias - Bu - Q).norm(), 1e-9 * (1 + Q.norm() + d.bias.norm()));
 }
 
 // solve_mass eliminates the motor block through its Schur complement: it must agree with a

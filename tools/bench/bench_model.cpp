@@ -1,13 +1,16 @@
 // pedalwave_bench_model: what one evaluation of the plant model costs, and what each scene effect
 // adds (Google Benchmark). Benchmarks:
-//   forward_dynamics/<flexible|rigid>/N:<n>   model::forward_dynamics, N = 6, 12, 24, 48, 64
+//   forward_dynamics/<recursive|dense>/<flexible|rigid>/N:<n>
+//                                             model::forward_dynamics with each solver,
+//                                             N = 2, 6, 16, 32, 64
 //   acceleration/<effects>                    Plant::acceleration with the shipped scenes' effects
 //                                             switched on one at a time (N = 6, module PD input)
 //   implicit_terms/<effects>                  Plant::implicit_terms (velocity-implicit Jacobians)
 //   integrator_step/<method>                  one step of each integrator on the flat scene
-// After the runs it prints (stdout) the cost-versus-N table with the exponent fitted to the
-// N = 24 … 64 points, the effect table, and the check of the project target (≤ 2 µs for one
-// flexible N = 6 forward-dynamics evaluation). Usual Google Benchmark flags apply
+// After the runs it prints (stdout) the cost-versus-N table of both solvers with the exponent fitted
+// to the N = 16 … 64 points, the effect table, and the checks of the targets: ≤ 2 µs for one flexible
+// N = 6 forward-dynamics evaluation; the recursive solver (issue 19) at N = 64 ≤ 10 µs, cost(64) /
+// cost(6) ≤ 15, and at N = 6 no slower than the dense one — ratios of one run. Usual Google Benchmark flags apply
 // (--benchmark_filter=..., --benchmark_repetitions=..., --benchmark_min_time=...).
 #include <benchmark/benchmark.h>
 
@@ -39,7 +42,11 @@ using pedalwave::model::VectorXd;
 using pedalwave::toolkit::Table;
 
 constexpr double kTargetNs = 2000.0;  // project target: one N = 6 flexible evaluation [ns]
-const std::vector<int> kSizes = {6, 12, 24, 48, 64};
+constexpr double kTarget64Ns = 10000.0;  // issue 19: recursive N = 64 flexible [ns]
+constexpr double kTargetRatio = 15.0;    // issue 19: recursive cost(64) / cost(6)
+const std::vector<int> kSizes = {2, 6, 16, 32, 64};
+using pedalwave::model::ForwardSolver;
+constexpr ForwardSolver kSolvers[] = {ForwardSolver::kRecursive, ForwardSolver::kDense};
 
 // A generic moving state: joints bent like the gait, every coordinate moving, springs deflected.
 void moving_state(const Model& m, VectorXd& q, VectorXd& v) {
@@ -62,7 +69,7 @@ void moving_state(const Model& m, VectorXd& q, VectorXd& v) {
 
 // ---- forward dynamics ---------------------------------------------------------------------------
 
-void bm_forward_dynamics(benchmark::State& st, int N, bool flexible) {
+void bm_forward_dynamics(benchmark::State& st, int N, bool flexible, ForwardSolver solver) {
   Params p = pedalwave::model::paper_params(N);
   p.joints = flexible ? pedalwave::model::JointModel::kFlexible : pedalwave::model::JointModel::kRigid;
   const Model m(p);
@@ -74,7 +81,7 @@ void bm_forward_dynamics(benchmark::State& st, int N, bool flexible) {
   VectorXd qdd = VectorXd::Zero(m.nq());
   for (auto _ : st) {
     benchmark::DoNotOptimize(q.data());
-    const bool ok = pedalwave::model::forward_dynamics(m, d, q, v, u, Q, qdd);
+    const bool ok = pedalwave::model::forward_dynamics(m, d, q, v, u, Q, qdd, solver);
     benchmark::DoNotOptimize(ok);
     benchmark::DoNotOptimize(qdd.data());
     benchmark::ClobberMemory();
@@ -241,18 +248,18 @@ class Collector : public benchmark::ConsoleReporter {
   std::map<std::string, bool> median_;
 };
 
-std::string fd_name(bool flexible, int N) {
-  return std::string("forward_dynamics/") + (flexible ? "flexible" : "rigid") + "/N:" +
-         std::to_string(N);
+std::string fd_name(bool flexible, int N, ForwardSolver s = ForwardSolver::kRecursive) {
+  return std::string("forward_dynamics/") + (s == ForwardSolver::kRecursive ? "recursive/" : "dense/") +
+         (flexible ? "flexible" : "rigid") + "/N:" + std::to_string(N);
 }
 
-// Least-squares slope of log(cost) against log(N) over the points with N in [24, 64].
-double fitted_exponent(const Collector& c, bool flexible) {
+// Least-squares slope of log(cost) against log(N) over the points with N in [16, 64].
+double fitted_exponent(const Collector& c, bool flexible, ForwardSolver s) {
   double sx = 0, sy = 0, sxx = 0, sxy = 0;
   int n = 0;
   for (int N : kSizes) {
-    if (N < 24) continue;
-    const double t = c.ns(fd_name(flexible, N));
+    if (N < 16) continue;
+    const double t = c.ns(fd_name(flexible, N, s));
     if (!std::isfinite(t)) continue;
     const double x = std::log(N), y = std::log(t);
     sx += x, sy += y, sxx += x * x, sxy += x * y, ++n;
@@ -264,17 +271,34 @@ double fitted_exponent(const Collector& c, bool flexible) {
 std::string us(double ns) { return std::isfinite(ns) ? Table::num(ns / 1e3, 3) : "-"; }
 
 void print_summary(const Collector& c, const std::vector<EffectCase>& effects) {
-  std::cout << "\n== forward_dynamics cost versus N (CPU time per evaluation) ==\n";
-  Table scale({"N", "nq flexible", "flexible [µs]", "rigid [µs]", "flexible / rigid"});
+  using S = ForwardSolver;
+  std::cout << "\n== forward_dynamics cost versus N (CPU time per evaluation), both solvers ==\n";
+  Table scale({"N", "nq flexible", "recursive flexible [µs]", "dense flexible [µs]", "dense / recursive",
+               "recursive rigid [µs]", "dense rigid [µs]", "dense / recursive"});
+  auto ratio = [](double a, double b) { return std::isfinite(a / b) ? Table::num(a / b, 3) : "-"; };
   for (int N : kSizes) {
-    const double f = c.ns(fd_name(true, N)), r = c.ns(fd_name(false, N));
-    scale.add_row({std::to_string(N), std::to_string(2 * N + 1), us(f), us(r),
-                   std::isfinite(f / r) ? Table::num(f / r, 3) : "-"});
+    const double rf = c.ns(fd_name(true, N, S::kRecursive)), df = c.ns(fd_name(true, N, S::kDense));
+    const double rr = c.ns(fd_name(false, N, S::kRecursive)), dr = c.ns(fd_name(false, N, S::kDense));
+    scale.add_row({std::to_string(N), std::to_string(2 * N + 1), us(rf), us(df), ratio(df, rf), us(rr),
+                   us(dr), ratio(dr, rr)});
   }
   std::cout << scale.to_text();
-  std::cout << "fitted exponent (cost ∝ N^p, N = 24 … 64): flexible p = "
-            << Table::num(fitted_exponent(c, true), 3)
-            << ", rigid p = " << Table::num(fitted_exponent(c, false), 3) << '\n';
+  std::cout << "fitted exponent (cost ∝ N^p, N = 16 … 64): recursive flexible p = "
+            << Table::num(fitted_exponent(c, true, S::kRecursive), 3)
+            << ", rigid p = " << Table::num(fitted_exponent(c, false, S::kRecursive), 3)
+            << "; dense flexible p = " << Table::num(fitted_exponent(c, true, S::kDense), 3)
+            << ", rigid p = " << Table::num(fitted_exponent(c, false, S::kDense), 3) << '\n';
+  for (bool flexible : {true, false}) {
+    const char* what = flexible ? "flexible" : "rigid";
+    const double r6 = c.ns(fd_name(flexible, 6, S::kRecursive)), r64 = c.ns(fd_name(flexible, 64, S::kRecursive));
+    const double d6 = c.ns(fd_name(flexible, 6, S::kDense)), d64 = c.ns(fd_name(flexible, 64, S::kDense));
+    std::cout << what << ": cost(64) / cost(6) recursive " << ratio(r64, r6) << " (target ≤ "
+              << Table::num(kTargetRatio, 3) << ": " << (r64 / r6 <= kTargetRatio ? "MET" : "NOT MET")
+              << "), dense " << ratio(d64, d6) << "; N = 64 recursive " << us(r64) << " µs (target ≤ "
+              << us(kTarget64Ns) << " µs: " << (r64 <= kTarget64Ns ? "MET" : "NOT MET")
+              << "); N = 6 recursive / dense " << ratio(r6, d6) << " (target ≤ 1: "
+              << (r6 <= d6 ? "MET" : "NOT MET") << ")\n";
+  }
   const double t6 = c.ns(fd_name(true, 6));
   if (std::isfinite(t6))
     std::cout << "target: N = 6 flexible ≤ " << us(kTargetNs) << " µs → measured " << us(t6)
@@ -311,8 +335,9 @@ int main(int argc, char** argv) {
 
   for (bool flexible : {true, false})
     for (int N : kSizes)
-      benchmark::RegisterBenchmark(fd_name(flexible, N).c_str(), bm_forward_dynamics, N, flexible)
-          ->Unit(benchmark::kNanosecond);
+      for (ForwardSolver s : kSolvers)
+        benchmark::RegisterBenchmark(fd_name(flexible, N, s).c_str(), bm_forward_dynamics, N, flexible, s)
+            ->Unit(benchmark::kNanosecond);
 
   std::vector<EffectCase> effects;
   try {

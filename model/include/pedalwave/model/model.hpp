@@ -18,6 +18,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <vector>
 
 #include "pedalwave/model/params.hpp"
 
@@ -88,6 +89,26 @@ class Model {
   VectorXd d_inv_;
 };
 
+// One link's slot in the recursive (articulated-body) forward dynamics (dynamics.hpp,
+// forward_dynamics with ForwardSolver::kRecursive). Spatial vectors are planar [rotation; x; z],
+// expressed in a world-aligned frame at the link's reference point o_i (its joint to the parent
+// link i+1; the root link N-1: its COM). Written by every evaluation; no meaning between calls.
+struct RecursiveLink {
+  double d[2];    // o_i − o_{i+1} [m] (root: unused)
+  double r[2];    // link COM − o_i [m]
+  double w;       // θ̇_i [rad/s]
+  double vo[2];   // velocity of o_i [m/s]
+  double vg[2];   // velocity of the link COM [m/s]
+  double c[2];    // velocity-product acceleration of the joint (linear part; rotation is 0) [m/s²]
+  double IA[6];   // articulated inertia at o_i: [I00, h_x, h_z, M_xx, M_xz, M_zz] [SI]
+  double pA[3];   // articulated bias force at o_i [N·m, N, N]
+  double U[3];    // IA S (+ the geared rotor's share, rigid exact limit) [SI]
+  double D_inv;   // 1 / (Sᵀ IA S (+ rotor)) [1/(kg·m²)]
+  double u;       // joint torque less the bias's share, τ − Sᵀ pA [N·m]
+  double tau_b;   // flexible: generalized force on β_i, u_i + Q_β − K(β − α) [N·m]
+  double a[3];    // spatial acceleration at o_i [rad/s², m/s², m/s²]
+};
+
 // Workspace: sized once from a Model; every evaluation writes here and allocates nothing.
 struct Data {
   explicit Data(const Model& m);
@@ -107,6 +128,8 @@ struct Data {
   VectorXd gz;          // scratch generalized force in z, (N+2)
   MatrixXd chol;        // lower Cholesky factor of the Schur complement (Model::spin_schur), (N+2)²
   bool mass_valid = false;   // chol factors M at the current q (factor_mass / compute_mass_matrix)
+  // Recursive forward dynamics (ForwardSolver::kRecursive), (N)
+  std::vector<RecursiveLink> links;
 };
 
 }  // namespace pedalwave::model

@@ -100,6 +100,12 @@ class Plant final : public System {
 
   Data& data() { return data_; }
 
+  // The forward-dynamics solver acceleration() uses (dynamics.hpp): the O(N) recursive one by
+  // default; kDense is the reference (bit-identical to the plant before the recursive solver).
+  // The two agree to rounding. Set between steps only.
+  ForwardSolver forward_solver() const { return solver_; }
+  void set_forward_solver(ForwardSolver s) { solver_ = s; }
+
  private:
   double mu_at(double x) const;
   // Generalized forces of the injected spring and joint-load faults, added to Q (nq); with
@@ -125,6 +131,7 @@ class Plant final : public System {
   std::vector<char> anchored_;
   std::mt19937_64 rng_;
   double x_min_ = 0.0, x_max_ = 0.0;  // robot's X extent at the last evaluation (broad phase)
+  ForwardSolver solver_ = ForwardSolver::kRecursive;
 };
 
 // A plant with its integrator and state: the unit the CLI, tools and the sim driver step.

@@ -23,6 +23,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -480,11 +481,22 @@ TEST(BusWalkStalls, TheModulesThreadHeldWhileTheLoopRunsIsNoFault) {
   WalkSetup s{.transport = Transport::kCanClassic, .rate_hz = 100, .duration = 20, .stale_timeout = 0};
   s.plant_max_step = 2.5e-4;  // the VM walks' plant step (module-PD error well below the threshold)
   std::string seen;
-  for (const double stall : {0.13, 0.17, 0.19}) {
+  std::vector<std::pair<double, int>> stalls{{0.13, 150}, {0.17, 150}, {0.19, 150}};
+  if (const char* e = std::getenv("PEDALWAVE_STALLS")) {  // experiments: "ms:every,ms:every"
+    stalls.clear();
+    for (const char* p = e; *p;) {
+      char* end = nullptr;
+      const double ms = std::strtod(p, &end);
+      const int every = static_cast<int>(std::strtol(end + 1, &end, 10));
+      stalls.emplace_back(ms / 1000, every);
+      p = *end ? end + 1 : end;
+    }
+  }
+  for (const auto& [stall, every] : stalls) {
     drivers::FaultConfig f;
     f.thread_stall_ns = std::llround(stall * 1e9);
     f.stall_first_sync = 300;   // t = 3 s
-    f.stall_every_syncs = 150;  // then every 1.5 s (11 stalls in the run)
+    f.stall_every_syncs = static_cast<std::uint64_t>(every);  // then every 1.5 s (11 stalls)
     const WalkResult bus = test::walk_bus(s, scene(), f);
     char what[64];
     std::snprintf(what, sizeof what, "modules held %.0f ms", 1e3 * stall);

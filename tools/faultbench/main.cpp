@@ -428,8 +428,9 @@ int main(int argc, char** argv) {
       return 2;
     }
     if (trials > 0) {
+      const campaign::Options co = campaign::cli::options(camp, jobs, false);  // a refused file: before any output
       std::printf("## Fault-injection campaign: %d random injections per fault and scene (flat_high_friction, stair), onset uniform in 2…8 s, joint uniform, sensor noise on\n\n", trials);
-      print_campaign(injection_campaign(trials, campaign::cli::options(camp, jobs, false), seed, verbose, only));
+      print_campaign(injection_campaign(trials, co, seed, verbose, only));
       std::printf("\n");
     }
     if (nominal_minutes > 0) {

@@ -188,7 +188,9 @@ int main(int argc, char** argv) {
   }
 
   try {
-    std::cout << "pedalwave_paper: output in " << s.out_dir.string() << ", " << s.jobs << " threads, "
+    std::cout << "pedalwave_paper: output in " << s.out_dir.string() << ", " << s.jobs << " threads"
+              << (s.campaign.backend == pedalwave::campaign::Backend::slurm ? " (the sweep's runs: Slurm job arrays), "
+                                                                           : ", ")
               << (s.integ ? std::string(model::to_string(s.integ->method)) + " h = " + std::to_string(s.integ->h) + " s"
                           : std::string("each scene's own integrator"))
               << ", control " << s.rate_hz

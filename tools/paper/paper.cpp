@@ -1,6 +1,7 @@
 #include "paper.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -106,6 +107,16 @@ std::vector<RunResult> run_campaign(const Settings& s, const std::vector<RunSpec
   out.reserve(res.size());
   for (const std::string& r : res) out.push_back(decode_result(r));
   return out;
+}
+
+// The campaign name of a sweep over the box scene (its folder under the campaign dir): "sweep"
+// for the shipped stair, else "sweep-<scene>" (path characters replaced), so that `all`'s two
+// sweeps never share a folder.
+std::string sweep_campaign(const Settings& s, const std::string& what) {
+  if (s.stair_scene == "stair") return what;
+  std::string tag;
+  for (char c : s.stair_scene) tag += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_';
+  return what + "-" + tag;
 }
 
 std::string read_file(const fs::path& p) {
@@ -547,10 +558,14 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
   const std::string sc_text = read_file(scene_file(s, s.stair_scene));
   log(s) << "== k_c sweep over " << s.stair_scene << ": " << grid.size() << " runs, k_c = " << fmt(o.from) << " … "
          << fmt(o.to) << " step " << fmt(o.step) << ", " << o.duration << " s each, " << describe_integ(s, sc)
-         << ", " << s.jobs << " threads\n";
+         << ", "
+         << (s.campaign.backend == campaign::Backend::slurm
+                 ? "Slurm job arrays of " + std::to_string(s.campaign.slurm.chunk) + " runs per task"
+                 : std::to_string(s.jobs) + " threads")
+         << '\n';
   std::vector<RunSpec> specs;
   for (double k : grid) specs.push_back(make_spec(s, sc, o.duration, k, 0.0));
-  const auto res = run_campaign(s, specs, "sweep", s.stair_scene, sc_text, &out.wall_s);
+  const auto res = run_campaign(s, specs, sweep_campaign(s, "sweep"), s.stair_scene, sc_text, &out.wall_s);
   for (std::size_t i = 0; i < grid.size(); ++i) {
     out.points.push_back({grid[i], res[i].avg_speed, res[i].stair, res[i].status, res[i].cpu_s});
     out.cpu_s += res[i].cpu_s;
@@ -595,7 +610,7 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
     fine.integ->h = o.check_h;
     std::vector<RunSpec> cs;
     for (double k : uniq) cs.push_back(make_spec(fine, sc, o.duration, k, 0.0));
-    const auto cr = run_campaign(s, cs, "sweep-check", s.stair_scene, sc_text);
+    const auto cr = run_campaign(s, cs, sweep_campaign(s, "sweep-check"), s.stair_scene, sc_text);
     for (std::size_t i = 0; i < uniq.size(); ++i) {
       SweepCheck c{uniq[i], kNaN, cr[i].avg_speed};
       for (const SweepPoint& p : out.points)
@@ -647,8 +662,11 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
   std::ostringstream md;
   md << "### k_c sweep (`pedalwave_paper sweep" << stair_arg(s) << "`)\n\n"
      << grid.size() << " runs over the stair (scene `" << s.stair_scene << "`), k_c = " << fmt(o.from) << " … " << fmt(o.to) << " step "
-     << fmt(o.step) << ", " << fmt(o.duration) << " s each, " << describe_integ(s, sc) << ", on " << s.jobs
-     << " threads: wall **" << fmt(out.wall_s, 3) << " s**, CPU " << fmt(out.cpu_s, 3)
+     << fmt(o.step) << ", " << fmt(o.duration) << " s each, " << describe_integ(s, sc) << ", "
+     << (s.campaign.backend == campaign::Backend::slurm
+             ? "as Slurm job arrays (" + std::to_string(s.campaign.slurm.chunk) + " runs per task)"
+             : "on " + std::to_string(s.jobs) + " threads")
+     << ": wall **" << fmt(out.wall_s, 3) << " s**, CPU " << fmt(out.cpu_s, 3)
      << " s, real-time factor " << fmt(out.realtime_factor, 3) << " (simulated s per wall s).\n\n";
   if (have_best)
     md << "Best k_c = **" << fmt(out.points[out.best].k_c) << "**: " << cms(out.points[out.best].speed)

@@ -9,12 +9,15 @@
 #   3. the submitting process killed (SIGKILL) mid-campaign: the same command again resumes —
 #      finished runs are not rerun, the running task is followed, not resubmitted (runs.log holds
 #      every run exactly once), results the local ones;
-#   4. sbatch refusing the job (a bogus --sbatch-opt) is one clear error, exit ≠ 0.
-# Usage: run_slurm_tests.sh PAPER_EXE WORK_DIR. Exit 0 pass, 1 fail, 77 SKIPPED (no slurm-wlm /
+#   4. sbatch refusing the job (a bogus --sbatch-opt) is one clear error, exit ≠ 0;
+#   5. (with FAULTBENCH_EXE) pedalwave_faultbench's injection trials through sbatch print the same
+#      table and per-trial lines as the local backend.
+# Usage: run_slurm_tests.sh PAPER_EXE WORK_DIR [FAULTBENCH_EXE]. Exit 0 pass, 1 fail, 77 SKIPPED (no slurm-wlm /
 # munge packages, not root, or the daemons do not come up).
 set -uo pipefail
 PAPER=$1
 W=$2
+FAULTBENCH=${3:-}
 HERE=$(cd "$(dirname "$0")" && pwd)
 source "$HERE/cluster.sh"
 
@@ -132,6 +135,21 @@ if [ "$rc" -ne 0 ] && grep -q "error: sbatch --array=0 .*job.sh failed" "$W/slur
   pass "sbatch's refusal is one error line (exit $rc)"
 else
   fail "expected an sbatch error: exit $rc, $(tail -2 "$W/slurm4.log" | tr '\n' ';')"
+fi
+
+# ---- 5. faultbench's trials --------------------------------------------------------------------------
+if [ -n "$FAULTBENCH" ]; then
+  FB=(--trials 1 --only encoder_offset --seed 11 -v)
+  "$FAULTBENCH" "${FB[@]}" --jobs 2 >"$W/fb_local.md" 2>"$W/fb_local.err" || fail "local faultbench: exit $?"
+  "$FAULTBENCH" "${FB[@]}" --backend slurm --campaign-dir "$W/fb" --poll 0.2 >"$W/fb_slurm.md" 2>"$W/fb_slurm.err" ||
+    { fail "slurm faultbench: exit $?"; tail -3 "$W/fb_slurm.err"; }
+  if cmp -s "$W/fb_local.md" "$W/fb_slurm.md" &&
+     cmp -s <(grep -- '->' "$W/fb_local.err") <(grep -- '->' "$W/fb_slurm.err") &&
+     [ "$(grep -c -- '->' "$W/fb_slurm.err")" -eq 2 ]; then
+    pass "faultbench trials through sbatch = local (table and 2 trial lines)"
+  else
+    fail "faultbench differs: $(diff "$W/fb_local.md" "$W/fb_slurm.md" | head -3 | tr '\n' ';')"
+  fi
 fi
 
 if [ "$failures" -ne 0 ]; then echo "$failures FAILED (logs in $W)"; exit 1; fi

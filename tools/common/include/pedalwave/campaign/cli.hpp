@@ -33,7 +33,9 @@ inline void add_options(CLI::App* app, CliOptions& c, const std::string& default
   app->add_option("--slurm-config", c.slurm_config,
                   "YAML file of slurm options (partition, account, time, cpus_per_task, sbatch_options, chunk, "
                   "throttle, max_retries, poll_s, dir)")->group("Campaign");
-  app->add_option("--campaign-dir", c.slurm.dir, "slurm: campaign folders (on a file system the nodes share)")
+  app->add_option("--campaign-dir", c.slurm.dir,
+                  std::string("slurm: campaign folders (on a file system the nodes share)") +
+                      (default_dir.empty() ? "; default <--out>/campaign" : ""))
       ->capture_default_str()->group("Campaign");
   app->add_option("--partition", c.slurm.partition, "slurm: partition")->group("Campaign");
   app->add_option("--account", c.slurm.account, "slurm: account")->group("Campaign");

@@ -30,3 +30,31 @@ for c in "${CHUNKS[@]}"; do
   # 2 tasks run at once on the 2-CPU node: each task's share of the extra wall time × 2.
   echo "| slurm, chunk $c | $runs | $tasks | $(awk "BEGIN{printf \"%.1f\", $s_ms/1000}") | $(awk "BEGIN{printf \"%.2f\", 2*($s_ms-$local_ms)/1000/$tasks}") | $same |"
 done
+# From slurmctld's log (less sensitive to the machine's other load than the wall times): per job,
+# the mean time from a task's start to its end, and from a task's end to the next task's start.
+# The runs' own CPU time (sweep.csv's cpu_s) for scale.
+echo
+echo "runs' CPU time: $(awk -F, 'NR > 2 {s += $8} END {printf "%.1f s in all, %.3f s per run", s, s / (NR - 2)}' "$W/local/sweep.csv") (local backend)"
+/usr/bin/python3 - "$W/cluster/log/slurmctld.log" "${CHUNKS[@]}" <<'PY'
+import datetime, re, sys
+alloc, done = {}, {}
+for l in open(sys.argv[1]):
+    m = re.match(r"\[(.*?)\] (?:sched: Allocate JobId=(\S+)\(|sched/backfill: _start_job: Started JobId=(\S+)\(|"
+                 r"_job_complete: JobId=(\S+)\(\d+\) done)", l)
+    if not m: continue
+    t = datetime.datetime.fromisoformat(m.group(1))
+    if m.group(4): done[m.group(4)] = t
+    else: alloc[m.group(2) or m.group(3)] = t
+jobs = sorted({k.split("_")[0] for k in alloc}, key=int)
+for job, chunk in zip(jobs, sys.argv[2:]):
+    a = {k: t for k, t in alloc.items() if k.split("_")[0] == job}
+    d = {k: t for k, t in done.items() if k.split("_")[0] == job}
+    run = [(d[k] - a[k]).total_seconds() for k in a if k in d]
+    ends = sorted(d.values())
+    gaps = []
+    for t in sorted(a.values())[2:]:  # the first two start at once
+        before = [e for e in ends if e <= t]
+        if before: gaps.append((t - before[-1]).total_seconds())
+    print(f"chunk {chunk}: {len(a)} tasks, task start to end {sum(run)/len(run):.2f} s (mean), "
+          f"a task's end to the next start {sum(gaps)/max(len(gaps),1):.2f} s (mean), {max(gaps or [0]):.2f} s (max)")
+PY

@@ -92,8 +92,8 @@ done
 if [ -z "$victim" ]; then
   fail "no array task ever ran"
 else
-  sleep 0.5
-  scancel "$victim" && echo "cancelled array task $victim"
+  # At once: a run takes ~1 s here, it must still be running when cancelled.
+  scancel "$victim" && echo "cancelled array task $victim ($(ls "$W/slurm2/campaign/sweep/results" | wc -l) results then)"
 fi
 wait "$submitter"; rc=$?
 [ "$rc" -eq 0 ] || { fail "slurm sweep with a cancelled task: exit $rc"; tail -5 "$W/slurm2.log"; }

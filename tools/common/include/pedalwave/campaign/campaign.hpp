@@ -132,8 +132,9 @@ std::string array_ranges(const std::vector<std::size_t>& tasks);
 // The sbatch script for the campaign folder `dir`.
 std::string job_script(const std::string& name, const std::filesystem::path& dir, const SlurmOptions& o,
                        const std::filesystem::path& worker_exe);
-// Result file of run i; the result of run i in `dir` when its file exists and was written for
-// `spec` (its hash matches), else nullopt-like empty bool.
+// Result file of run i (dir/results/<i>.res). read_result: true and the result of run i when its
+// file is whole and was written for `spec` (the hash on its first line matches), else false.
+// write_result writes it atomically (a temporary file, then a rename).
 std::filesystem::path result_file(const std::filesystem::path& dir, std::size_t i);
 bool read_result(const std::filesystem::path& dir, std::size_t i, const std::string& spec, std::string& result);
 void write_result(const std::filesystem::path& dir, std::size_t i, const std::string& spec, const std::string& result);

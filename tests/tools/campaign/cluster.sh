@@ -7,6 +7,7 @@
 # Root only (slurmd runs jobs as their user and must switch users): CLUSTER_WHY says so otherwise.
 CLUSTER_PIDS=()
 CLUSTER_WHY=""
+CLUSTER_SOCKDIR=""  # a short folder for munge's socket when DIR's path is too long for one
 
 cluster_free_port() {
   /usr/bin/python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'
@@ -28,17 +29,21 @@ cluster_start() {
   local p1 p2; p1=$(cluster_free_port); p2=$(cluster_free_port)
   while [ "$p2" = "$p1" ]; do p2=$(cluster_free_port); done
 
-  # munge: its own key and socket.
+  # munge: its own key and socket (a Unix socket's path has at most 107 characters).
+  local sock="$d/munge/munge.socket"
+  if [ ${#sock} -gt 100 ]; then
+    CLUSTER_SOCKDIR=$(mktemp -d /tmp/pw-munge.XXXXXX); sock="$CLUSTER_SOCKDIR/munge.socket"
+  fi
   mungekey --create --keyfile="$d/munge/munge.key" >/dev/null 2>&1 ||
     { dd if=/dev/urandom of="$d/munge/munge.key" bs=1024 count=1 status=none; }
   chmod 600 "$d/munge/munge.key"
-  munged -F --force --key-file="$d/munge/munge.key" --socket="$d/munge/munge.socket" \
+  munged -F --force --key-file="$d/munge/munge.key" --socket="$sock" \
     --pid-file="$d/munge/munged.pid" --log-file="$d/log/munged.log" --seed-file="$d/munge/munged.seed" \
     >"$d/log/munged.out" 2>&1 &
   CLUSTER_PIDS+=($!)
   local i
-  for i in $(seq 50); do [ -S "$d/munge/munge.socket" ] && break; sleep 0.1; done
-  if [ ! -S "$d/munge/munge.socket" ]; then
+  for i in $(seq 50); do [ -S "$sock" ] && break; sleep 0.1; done
+  if [ ! -S "$sock" ]; then
     CLUSTER_WHY="munged did not start: $(tail -3 "$d/log/munged.out" "$d/log/munged.log" 2>/dev/null | tr '\n' ' ')"
     cluster_stop; return 1
   fi
@@ -52,7 +57,7 @@ SlurmctldPort=$p1
 SlurmdPort=$p2
 AuthType=auth/munge
 CredType=cred/munge
-AuthInfo=socket=$d/munge/munge.socket
+AuthInfo=socket=$sock
 StateSaveLocation=$d/state
 SlurmdSpoolDir=$d/spool
 SlurmctldPidFile=$d/slurmctld.pid
@@ -102,4 +107,5 @@ cluster_stop() {
     wait "$pid" 2>/dev/null || true
   done
   CLUSTER_PIDS=()
+  if [ -n "$CLUSTER_SOCKDIR" ]; then rm -rf "$CLUSTER_SOCKDIR"; CLUSTER_SOCKDIR=""; fi
 }

@@ -6,6 +6,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -124,6 +126,61 @@ TEST(PaperParallel, RethrowsTheWorkersExceptionAndRunsEveryItemOnce) {
   for (int h : hits) EXPECT_EQ(h, 1);
   EXPECT_THROW(paper::parallel_for(10, 2, [](std::size_t i) { if (i == 4) throw std::runtime_error("x"); }),
                std::runtime_error);
+}
+
+// The campaign layer's local backend (what `pedalwave_paper sweep` runs, each run through its
+// one-line text) against the runs made directly from the in-memory specs on the thread pool the
+// tool used before: every result field bit for bit (not the CPU and wall times, measurements).
+TEST_F(Paper, CampaignLocalBackendGivesTheDirectRunsBitForBit) {
+  const paper::Settings s = settings(2, "campaign");
+  const pedalwave::model::Scene sc = paper::load(s, "stair");
+  const std::string text = slurp(paper::scene_file(s, "stair"));
+  std::vector<paper::RunSpec> specs;
+  std::vector<std::string> lines;
+  for (double k : {0.0, 2.5, 10.1}) {
+    paper::RunSpec r;
+    r.scene = sc;
+    r.scene.duration = 2.5;
+    r.k_c = k;
+    r.integ = paper::integ_of(s, sc);
+    r.rate_hz = 1000.0;
+    specs.push_back(r);
+    lines.push_back(paper::encode_spec(r, "stair", text));
+  }
+  std::vector<paper::RunResult> direct(specs.size());
+  paper::parallel_for(specs.size(), 2, [&](std::size_t i) { direct[i] = paper::run(specs[i]); });
+  pedalwave::campaign::Options o;
+  o.jobs = 2;
+  o.progress = false;
+  const std::vector<std::string> out = pedalwave::campaign::run("t", lines, paper::run_line, o);
+  ASSERT_EQ(out.size(), specs.size());
+  auto bits = [](double v) { return std::bit_cast<std::uint64_t>(v); };
+  for (std::size_t i = 0; i < specs.size(); ++i) {
+    const paper::RunResult c = paper::decode_result(out[i]);
+    const paper::RunResult& d = direct[i];
+    EXPECT_EQ(c.status, d.status);
+    EXPECT_EQ(c.steps, d.steps);
+    EXPECT_GT(c.steps, 0u);
+    const std::vector<std::pair<double, double>> pairs{
+        {c.t_end, d.t_end}, {c.avg_from, d.avg_from}, {c.avg_speed, d.avg_speed}, {c.com_x_final, d.com_x_final},
+        {c.t_head_cross, d.t_head_cross}, {c.stair.x_near, d.stair.x_near}, {c.stair.x_far, d.stair.x_far},
+        {c.stair.top, d.stair.top}, {c.stair.t_head_on_top, d.stair.t_head_on_top},
+        {c.stair.t_com_past, d.stair.t_com_past}, {c.stair.t_body_past, d.stair.t_body_past},
+        {c.stair.max_head_z, d.stair.max_head_z}};
+    for (std::size_t f = 0; f < pairs.size(); ++f)
+      EXPECT_TRUE(bits(pairs[f].first) == bits(pairs[f].second) ||
+                  (std::isnan(pairs[f].first) && std::isnan(pairs[f].second)))
+          << "run " << i << " field " << f << ": " << pairs[f].first << " vs " << pairs[f].second;
+    EXPECT_TRUE(std::isfinite(c.avg_speed));
+  }
+  // The spec's text holds the run: decoding gives the same fields back.
+  const paper::RunSpec back = paper::decode_spec(lines[2]);
+  EXPECT_EQ(back.k_c, 10.1);
+  EXPECT_EQ(back.scene.duration, 2.5);
+  EXPECT_EQ(back.integ.method, specs[2].integ.method);
+  EXPECT_EQ(bits(back.integ.h), bits(specs[2].integ.h));
+  EXPECT_EQ(back.scene.boxes.size(), sc.boxes.size());
+  EXPECT_THROW((void)paper::decode_spec("kind=other"), std::invalid_argument);
 }
 
 TEST_F(Paper, AdaptiveGainReachesTheControllerAndZeroKeepsTheNominalEta) {

@@ -6,7 +6,6 @@
 #include "pedalwave/toolkit/cli.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <time.h>
 
 #include <chrono>
@@ -14,26 +13,24 @@
 #include <string>
 #include <cstdio>
 #include <map>
-#include <mutex>
-#include <thread>
+#include <stdexcept>
 #include <vector>
 
 #include "harness.hpp"
+#include "pedalwave/campaign/campaign.hpp"
+#include "pedalwave/campaign/cli.hpp"
 
 using namespace pedalwave;
 using faultbench::LoopOptions;
+namespace campaign = pedalwave::campaign;
 
 namespace {
 
+// The tools' one thread pool (pedalwave::campaign), over int indices.
 template <class F>
 void parallel_for(int n, int jobs, F&& f) {
-  std::atomic<int> next{0};
-  std::vector<std::thread> ts;
-  for (int w = 0; w < std::max(1, jobs); ++w)
-    ts.emplace_back([&] {
-      for (int i; (i = next.fetch_add(1)) < n;) f(i);
-    });
-  for (auto& t : ts) t.join();
+  campaign::parallel_for(static_cast<std::size_t>(std::max(n, 0)), jobs,
+                         [&](std::size_t i) { f(static_cast<int>(i)); });
 }
 
 int calibrate(double minutes, int jobs) {
@@ -107,8 +104,72 @@ const char* check_of(model::FaultType f) {
   }
 }
 
-std::vector<Trial> campaign(int trials, int jobs, std::uint64_t seed, bool verbose,
-                            const std::string& only) {
+// One injection trial as a campaign's line of text: the scene (a shipped one, built in code), the
+// fault, the noise seed and the run's length; the result's every field, doubles exact.
+std::string encode_trial(const std::string& scene, const model::FaultSpec& f, std::uint64_t seed, double duration) {
+  campaign::Record r;
+  r.put_text("kind", "faultbench.trial")
+      .put_text("scene", scene)
+      .put_int("type", static_cast<long long>(f.type))
+      .put_int("joint", f.joint)
+      .put("t_start", f.t_start)
+      .put("value", f.value)
+      .put("fault_duration", f.duration)
+      .put_text("seed", std::to_string(seed))
+      .put("duration", duration);
+  return r.line();
+}
+
+std::string run_trial_line(const std::string& line) {
+  const campaign::Record r = campaign::Record::parse(line, "pedalwave_faultbench trial");
+  if (r.text("kind") != "faultbench.trial")
+    throw std::invalid_argument("trial: kind = " + r.text("kind") + ": expected faultbench.trial");
+  const long long type = r.integer("type");
+  if (type < 0 || type >= static_cast<long long>(model::FaultType::kCount))
+    throw std::invalid_argument("trial: type = " + std::to_string(type) + ": expected a fault type");
+  model::FaultSpec f;
+  f.type = static_cast<model::FaultType>(type);
+  f.joint = static_cast<int>(r.integer("joint"));
+  f.t_start = r.number("t_start");
+  f.value = r.number("value");
+  f.duration = r.number("fault_duration");
+  LoopOptions o;
+  o.seed = std::stoull(r.text("seed"));
+  const faultbench::RunResult x = faultbench::run_fault(faultbench::shipped_scene(r.text("scene")), o, f,
+                                                        r.number("duration"));
+  campaign::Record out;
+  out.put_int("detected", x.detected)
+      .put_int("false_alarm", x.false_alarm)
+      .put_int("fault", static_cast<long long>(x.fault))
+      .put_int("joint", x.joint)
+      .put("t_detect", x.t_detect)
+      .put("latency", x.latency)
+      .put("value", x.value)
+      .put("threshold", x.threshold)
+      .put("estimate", x.estimate)
+      .put_int("status", static_cast<long long>(x.status));
+  return out.line();
+}
+
+faultbench::RunResult decode_trial_result(const std::string& line) {
+  const campaign::Record r = campaign::Record::parse(line, "pedalwave_faultbench trial result");
+  faultbench::RunResult x;
+  x.detected = r.integer("detected") != 0;
+  x.false_alarm = r.integer("false_alarm") != 0;
+  x.fault = static_cast<runtime::FaultClass>(r.integer("fault"));
+  x.joint = static_cast<int>(r.integer("joint"));
+  x.t_detect = r.number("t_detect");
+  x.latency = r.number("latency");
+  x.value = r.number("value");
+  x.threshold = r.number("threshold");
+  x.estimate = r.number("estimate");
+  x.status = static_cast<model::StepStatus>(r.integer("status"));
+  return x;
+}
+
+// The injection trials as one campaign (Options: threads or Slurm job arrays).
+std::vector<Trial> injection_campaign(int trials, const campaign::Options& co, std::uint64_t seed, bool verbose,
+                                      const std::string& only) {
   std::vector<Trial> all;
   std::mt19937_64 rng(seed);
   for (const char* scene : {"flat_high_friction", "stair"})
@@ -117,21 +178,20 @@ std::vector<Trial> campaign(int trials, int jobs, std::uint64_t seed, bool verbo
         all.push_back({scene, faultbench::random_fault(static_cast<model::FaultType>(f), 5, 2.0, 8.0, rng), {}});
   if (!only.empty())  // same draws, then keep one type (to rerun part of a campaign)
     std::erase_if(all, [&](const Trial& t) { return model::to_string(t.fault.type) != only; });
-  std::mutex mu;
-  parallel_for(static_cast<int>(all.size()), jobs, [&](int i) {
-    Trial& tr = all[static_cast<std::size_t>(i)];
-    LoopOptions o;
-    o.seed = seed + 1000 + static_cast<std::uint64_t>(i);
-    tr.res = faultbench::run_fault(faultbench::shipped_scene(tr.scene), o, tr.fault,
-                                   tr.fault.t_start + 5.0);
-    if (verbose) {
-      std::lock_guard<std::mutex> lock(mu);
+  std::vector<std::string> specs;
+  for (std::size_t i = 0; i < all.size(); ++i)
+    specs.push_back(encode_trial(all[i].scene, all[i].fault, seed + 1000 + static_cast<std::uint64_t>(i),
+                                 all[i].fault.t_start + 5.0));
+  const std::vector<std::string> res = campaign::run("faultbench", specs, run_trial_line, co);
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    Trial& tr = all[i];
+    tr.res = decode_trial_result(res[i]);
+    if (verbose)
       std::fprintf(stderr, "%s %s j%d v=%.4g t0=%.3f -> %s j%d lat=%.3f est=%.3g\n", tr.scene.c_str(),
                    std::string(model::to_string(tr.fault.type)).c_str(), tr.fault.joint, tr.fault.value,
                    tr.fault.t_start, faultbench::class_name(tr.res.fault), tr.res.joint, tr.res.latency,
                    tr.res.estimate);
-    }
-  });
+  }
   return all;
 }
 
@@ -323,7 +383,11 @@ void coupling(const char* scene, double seconds) {
 }
 
 int main(int argc, char** argv) {
+  if (campaign::cli::is_worker(argc, argv))
+    return campaign::worker_main(argc - 1, argv + 1, run_trial_line, "pedalwave_faultbench");
   CLI::App app{"pedalwave_faultbench: observer fault-injection campaign"};
+  campaign::cli::CliOptions camp;
+  campaign::cli::add_options(&app, camp, "out/faultbench-campaign");  // the injection trials' backend
   bool calib = false;
   double minutes = 1.0;
   int jobs = 2;
@@ -364,8 +428,9 @@ int main(int argc, char** argv) {
       return 2;
     }
     if (trials > 0) {
+      const campaign::Options co = campaign::cli::options(camp, jobs, false);  // a refused file: before any output
       std::printf("## Fault-injection campaign: %d random injections per fault and scene (flat_high_friction, stair), onset uniform in 2…8 s, joint uniform, sensor noise on\n\n", trials);
-      print_campaign(campaign(trials, jobs, seed, verbose, only));
+      print_campaign(injection_campaign(trials, co, seed, verbose, only));
       std::printf("\n");
     }
     if (nominal_minutes > 0) {

@@ -3,16 +3,13 @@
 #include <time.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
-#include <exception>
-#include <mutex>
 #include <numbers>
 #include <stdexcept>
 #include <string>
-#include <thread>
 
+#include "pedalwave/config/scene.hpp"
 #include "pedalwave/model/dynamics.hpp"
 #include "pedalwave/model/kinematics.hpp"
 #include "pedalwave/model/plant.hpp"
@@ -175,40 +172,93 @@ std::vector<std::size_t> negative_peaks(const std::vector<double>& t, const std:
   return out;
 }
 
-void parallel_for(std::size_t n, int jobs, const std::function<void(std::size_t)>& f,
-                  const std::function<void()>& done) {
-  std::atomic<std::size_t> next{0};
-  std::exception_ptr error;
-  std::mutex error_mutex;
-  std::atomic<bool> stop{false};
-  auto worker = [&]() {
-    for (;;) {
-      if (stop.load()) return;
-      const std::size_t i = next.fetch_add(1);
-      if (i >= n) return;
-      try {
-        f(i);
-      } catch (...) {
-        const std::lock_guard<std::mutex> lock(error_mutex);
-        if (!error) error = std::current_exception();
-        stop = true;
-        return;
-      }
-      if (done) done();
-    }
-  };
-  const int threads = std::max(1, std::min<int>(jobs, static_cast<int>(std::max<std::size_t>(n, 1))));
-  if (threads == 1) {
-    worker();
-  } else {
-    std::vector<std::thread> pool;
-    pool.reserve(static_cast<std::size_t>(threads));
-    for (int i = 0; i < threads; ++i) pool.emplace_back(worker);
-    for (std::thread& th : pool) th.join();
-  }
-  if (error) std::rethrow_exception(error);
+std::string encode_spec(const RunSpec& spec, const std::string& scene_name, const std::string& scene_text) {
+  campaign::Record r;
+  r.put_text("kind", "paper.run")
+      .put_text("scene", scene_name)
+      .put_text("scene_yaml", scene_text)
+      .put("duration", spec.scene.duration)
+      .put("k_c", spec.k_c)
+      .put_text("method", model::to_string(spec.integ.method))
+      .put("h", spec.integ.h)
+      .put("rtol", spec.integ.rtol)
+      .put("atol", spec.integ.atol)
+      .put("h_min", spec.integ.h_min)
+      .put("h_max", spec.integ.h_max)
+      .put("rate_hz", spec.rate_hz)
+      .put("sample_every", spec.sample_every)
+      .put("cross_x", spec.cross_x)
+      .put("avg_from", spec.avg_from);
+  return r.line();
 }
 
-int default_jobs() { return static_cast<int>(std::max(1u, std::thread::hardware_concurrency())); }
+RunSpec decode_spec(const std::string& line) {
+  const campaign::Record r = campaign::Record::parse(line, "pedalwave_paper run specification");
+  if (r.text("kind") != "paper.run")
+    throw std::invalid_argument("run specification: kind = " + r.text("kind") + ": expected paper.run");
+  RunSpec s;
+  s.scene = config::parse_scene(r.text("scene_yaml"), r.text("scene"));
+  s.scene.duration = r.number("duration");
+  s.k_c = r.number("k_c");
+  s.integ.method = model::parse_method(r.text("method"));
+  s.integ.h = r.number("h");
+  s.integ.rtol = r.number("rtol");
+  s.integ.atol = r.number("atol");
+  s.integ.h_min = r.number("h_min");
+  s.integ.h_max = r.number("h_max");
+  s.rate_hz = r.number("rate_hz");
+  s.sample_every = r.number("sample_every");
+  s.cross_x = r.number("cross_x");
+  s.avg_from = r.number("avg_from");
+  return s;
+}
+
+std::string encode_result(const RunResult& x) {
+  campaign::Record r;
+  r.put_int("status", static_cast<long long>(x.status))
+      .put("t_end", x.t_end)
+      .put("avg_from", x.avg_from)
+      .put("avg_speed", x.avg_speed)
+      .put("com_x_final", x.com_x_final)
+      .put("t_head_cross", x.t_head_cross)
+      .put("x_near", x.stair.x_near)
+      .put("x_far", x.stair.x_far)
+      .put("top", x.stair.top)
+      .put("t_head_on_top", x.stair.t_head_on_top)
+      .put("t_com_past", x.stair.t_com_past)
+      .put("t_body_past", x.stair.t_body_past)
+      .put("max_head_z", x.stair.max_head_z)
+      .put("cpu_s", x.cpu_s)
+      .put("wall_s", x.wall_s)
+      .put_int("steps", static_cast<long long>(x.steps));
+  return r.line();
+}
+
+RunResult decode_result(const std::string& line) {
+  const campaign::Record r = campaign::Record::parse(line, "pedalwave_paper run result");
+  RunResult x;
+  const long long st = r.integer("status");
+  if (st < 0 || st > static_cast<long long>(model::StepStatus::kStepTooSmall))
+    throw std::invalid_argument("run result: status = " + std::to_string(st) + ": expected 0 … 3");
+  x.status = static_cast<model::StepStatus>(st);
+  x.t_end = r.number("t_end");
+  x.avg_from = r.number("avg_from");
+  x.avg_speed = r.number("avg_speed");
+  x.com_x_final = r.number("com_x_final");
+  x.t_head_cross = r.number("t_head_cross");
+  x.stair.x_near = r.number("x_near");
+  x.stair.x_far = r.number("x_far");
+  x.stair.top = r.number("top");
+  x.stair.t_head_on_top = r.number("t_head_on_top");
+  x.stair.t_com_past = r.number("t_com_past");
+  x.stair.t_body_past = r.number("t_body_past");
+  x.stair.max_head_z = r.number("max_head_z");
+  x.cpu_s = r.number("cpu_s");
+  x.wall_s = r.number("wall_s");
+  x.steps = static_cast<std::uint64_t>(r.integer("steps"));
+  return x;
+}
+
+std::string run_line(const std::string& line) { return encode_result(run(decode_spec(line))); }
 
 }  // namespace pedalwave::paper

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "pedalwave/campaign/campaign.hpp"
 #include "pedalwave/model/integrators.hpp"
 #include "pedalwave/model/scene.hpp"
 
@@ -89,13 +90,23 @@ double gait_period(const model::Scene& s);
 std::vector<std::size_t> negative_peaks(const std::vector<double>& t, const std::vector<double>& y,
                                         double window);
 
-// Runs f(i) for i = 0 … n−1 on `jobs` threads (1 = in the calling thread), taking items in
-// order from a shared counter; `done` (may be empty) is called after each item, from the
-// worker. The first exception thrown by f is rethrown after all threads stopped.
-void parallel_for(std::size_t n, int jobs, const std::function<void(std::size_t)>& f,
-                  const std::function<void()>& done = {});
+// The tools' one thread pool (pedalwave::campaign): f(i) for i = 0 … n−1 on `jobs` threads, the
+// first exception rethrown; default_jobs() = the hardware threads.
+using campaign::default_jobs;
+using campaign::parallel_for;
 
-// Jobs to use by default: the number of hardware threads (at least 1).
-int default_jobs();
+// ---- a run as one line of text (a campaign's specification and result) ------------------------------
+// The specification: the scene's YAML text (`scene_text`, what spec.scene was read from; only its
+// duration may differ) and every other field of spec, doubles as hex floats (exact). Throws
+// std::invalid_argument for text with a newline it cannot hold.
+std::string encode_spec(const RunSpec& spec, const std::string& scene_name, const std::string& scene_text);
+// Back: the scene parsed from the text (config::parse_scene), its duration set. Throws
+// std::invalid_argument / config::ConfigError naming the field.
+RunSpec decode_spec(const std::string& line);
+// Every scalar of a result (not the trace nor the resolved scene), exact.
+std::string encode_result(const RunResult& r);
+RunResult decode_result(const std::string& line);
+// The campaign's runner: encode_result(run(decode_spec(line))).
+std::string run_line(const std::string& line);
 
 }  // namespace pedalwave::paper

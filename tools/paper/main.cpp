@@ -8,7 +8,11 @@
 //   pedalwave_paper sensitivity [--K 1 3 10 30 100] [--I_r 1e-8 5e-8 2e-7] [--no-model-options] [--duration 60]
 //   pedalwave_paper all         [--duration 60] [--from --to --step --checks --check-h]
 // Every subcommand also takes --out DIR (default out/paper), --scenes DIR, --jobs N, --integrator
-// NAME, --h s, --rate Hz, --no-plots, --quiet. Figures (SVG + PNG) and a Markdown fragment go to
+// NAME, --h s, --rate Hz, --no-plots, --quiet, and the campaign options of the sweep's runs
+// (--backend local|slurm, --slurm-config FILE, --campaign-dir, --partition, --account, --time,
+// --cpus-per-task, --sbatch-opt, --chunk, --throttle, --max-retries, --poll: tools/common's
+// pedalwave/campaign/cli.hpp). `pedalwave_paper campaign-worker --dir D --task I` is the entry of
+// a Slurm array task (not for people). Figures (SVG + PNG) and a Markdown fragment go to
 // DIR; the numbers are printed. Exit codes: 0 done; 2 bad input (one line on stderr: an option, or
 // a scene file the reader refuses, also one read during the run); 1 other errors (e.g. cannot
 // write DIR).
@@ -21,6 +25,7 @@
 #include <vector>
 
 #include "paper.hpp"
+#include "pedalwave/campaign/cli.hpp"
 #include "pedalwave/simloop/plant_checks.hpp"
 #include "pedalwave/config/shipped.hpp"
 #include "pedalwave/toolkit/cli.hpp"
@@ -44,6 +49,7 @@ struct Common {
   std::string stair_scene = "stair";
   bool no_plots = false;
   bool quiet = false;
+  pedalwave::campaign::cli::CliOptions campaign;
 };
 
 void add_common(CLI::App* sub, Common& c) {
@@ -64,6 +70,8 @@ void add_common(CLI::App* sub, Common& c) {
       ->capture_default_str();
   sub->add_flag("--no-plots", c.no_plots, "write no figures");
   sub->add_flag("--quiet", c.quiet, "no progress bars");
+  // Default campaign folder: <--out>/campaign (an empty dir here).
+  pedalwave::campaign::cli::add_options(sub, c.campaign, "");
 }
 
 paper::Settings settings(const Common& c) {
@@ -79,12 +87,15 @@ paper::Settings settings(const Common& c) {
   s.stair_scene = c.stair_scene;
   s.plots = !c.no_plots;
   s.progress = !c.quiet;
+  s.campaign = pedalwave::campaign::cli::options(c.campaign, c.jobs, s.progress);
   return s;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (pedalwave::campaign::cli::is_worker(argc, argv))
+    return pedalwave::campaign::worker_main(argc - 1, argv + 1, paper::run_line, "pedalwave_paper");
   CLI::App app{"pedalwave_paper: reproduce the paper's results (flat ground, friction change, stair, "
                "the k_c sweep) with the runtime's controller against the plant model"};
   app.require_subcommand(1);
@@ -155,6 +166,7 @@ int main(int argc, char** argv) {
 
   paper::Settings s;
   try {
+    c.campaign.app = app.get_subcommands().front();  // the campaign options given are this one's
     s = settings(c);
     if (s.integ)  // the rule pedalwave_sim and the daemon use (simloop/plant_checks.hpp)
       if (const std::string why = simloop::step_problem(*s.integ, s.rate_hz, "1/rate"); !why.empty())
@@ -176,7 +188,9 @@ int main(int argc, char** argv) {
   }
 
   try {
-    std::cout << "pedalwave_paper: output in " << s.out_dir.string() << ", " << s.jobs << " threads, "
+    std::cout << "pedalwave_paper: output in " << s.out_dir.string() << ", " << s.jobs << " threads"
+              << (s.campaign.backend == pedalwave::campaign::Backend::slurm ? " (the sweep's runs: Slurm job arrays), "
+                                                                           : ", ")
               << (s.integ ? std::string(model::to_string(s.integ->method)) + " h = " + std::to_string(s.integ->h) + " s"
                           : std::string("each scene's own integrator"))
               << ", control " << s.rate_hz

@@ -1,6 +1,7 @@
 #include "paper.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -84,6 +85,46 @@ std::vector<RunResult> run_all(const Settings& s, const std::vector<RunSpec>& sp
   if (wall_s) *wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
   progress.finish();
   return out;
+}
+
+// Runs the specs as a campaign (Settings::campaign: threads or Slurm job arrays); every spec's
+// scene is the one read from `scene_text` (only the duration set). Results in spec order,
+// bit-identical between backends (each run goes through its one-line text either way).
+std::vector<RunResult> run_campaign(const Settings& s, const std::vector<RunSpec>& specs, const std::string& name,
+                                    const std::string& scene_name, const std::string& scene_text,
+                                    double* wall_s = nullptr) {
+  std::vector<std::string> lines;
+  lines.reserve(specs.size());
+  for (const RunSpec& r : specs) lines.push_back(encode_spec(r, scene_name, scene_text));
+  campaign::Options o = s.campaign;
+  o.jobs = s.jobs;
+  o.progress = s.progress;
+  if (o.slurm.dir.empty()) o.slurm.dir = s.out_dir / "campaign";
+  const auto w0 = std::chrono::steady_clock::now();
+  const std::vector<std::string> res = campaign::run(name, lines, run_line, o);
+  if (wall_s) *wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
+  std::vector<RunResult> out;
+  out.reserve(res.size());
+  for (const std::string& r : res) out.push_back(decode_result(r));
+  return out;
+}
+
+// The campaign name of a sweep over the box scene (its folder under the campaign dir): "sweep"
+// for the shipped stair, else "sweep-<scene>" (path characters replaced), so that `all`'s two
+// sweeps never share a folder.
+std::string sweep_campaign(const Settings& s, const std::string& what) {
+  if (s.stair_scene == "stair") return what;
+  std::string tag;
+  for (char c : s.stair_scene) tag += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_';
+  return what + "-" + tag;
+}
+
+std::string read_file(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::ostringstream os;
+  os << f.rdbuf();
+  if (!f) throw std::runtime_error("cannot read " + p.string());
+  return os.str();
 }
 
 RunSpec make_spec(const Settings& s, model::Scene scene, double duration, double k_c,
@@ -514,12 +555,17 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
   out.jobs = s.jobs;
   const auto grid = sweep_grid(o.from, o.to, o.step);
   const model::Scene sc = load(s, s.stair_scene);
+  const std::string sc_text = read_file(scene_file(s, s.stair_scene));
   log(s) << "== k_c sweep over " << s.stair_scene << ": " << grid.size() << " runs, k_c = " << fmt(o.from) << " … "
          << fmt(o.to) << " step " << fmt(o.step) << ", " << o.duration << " s each, " << describe_integ(s, sc)
-         << ", " << s.jobs << " threads\n";
+         << ", "
+         << (s.campaign.backend == campaign::Backend::slurm
+                 ? "Slurm job arrays of " + std::to_string(s.campaign.slurm.chunk) + " runs per task"
+                 : std::to_string(s.jobs) + " threads")
+         << '\n';
   std::vector<RunSpec> specs;
   for (double k : grid) specs.push_back(make_spec(s, sc, o.duration, k, 0.0));
-  const auto res = run_all(s, specs, "sweep", &out.wall_s);
+  const auto res = run_campaign(s, specs, sweep_campaign(s, "sweep"), s.stair_scene, sc_text, &out.wall_s);
   for (std::size_t i = 0; i < grid.size(); ++i) {
     out.points.push_back({grid[i], res[i].avg_speed, res[i].stair, res[i].status, res[i].cpu_s});
     out.cpu_s += res[i].cpu_s;
@@ -564,7 +610,7 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
     fine.integ->h = o.check_h;
     std::vector<RunSpec> cs;
     for (double k : uniq) cs.push_back(make_spec(fine, sc, o.duration, k, 0.0));
-    const auto cr = run_all(s, cs, "sweep check h = " + fmt(o.check_h));
+    const auto cr = run_campaign(s, cs, sweep_campaign(s, "sweep-check"), s.stair_scene, sc_text);
     for (std::size_t i = 0; i < uniq.size(); ++i) {
       SweepCheck c{uniq[i], kNaN, cr[i].avg_speed};
       for (const SweepPoint& p : out.points)
@@ -616,8 +662,11 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
   std::ostringstream md;
   md << "### k_c sweep (`pedalwave_paper sweep" << stair_arg(s) << "`)\n\n"
      << grid.size() << " runs over the stair (scene `" << s.stair_scene << "`), k_c = " << fmt(o.from) << " … " << fmt(o.to) << " step "
-     << fmt(o.step) << ", " << fmt(o.duration) << " s each, " << describe_integ(s, sc) << ", on " << s.jobs
-     << " threads: wall **" << fmt(out.wall_s, 3) << " s**, CPU " << fmt(out.cpu_s, 3)
+     << fmt(o.step) << ", " << fmt(o.duration) << " s each, " << describe_integ(s, sc) << ", "
+     << (s.campaign.backend == campaign::Backend::slurm
+             ? "as Slurm job arrays (" + std::to_string(s.campaign.slurm.chunk) + " runs per task)"
+             : "on " + std::to_string(s.jobs) + " threads")
+     << ": wall **" << fmt(out.wall_s, 3) << " s**, CPU " << fmt(out.cpu_s, 3)
      << " s, real-time factor " << fmt(out.realtime_factor, 3) << " (simulated s per wall s).\n\n";
   if (have_best)
     md << "Best k_c = **" << fmt(out.points[out.best].k_c) << "**: " << cms(out.points[out.best].speed)

@@ -47,6 +47,10 @@ struct Settings {
                                              // out_dir/stair_grip)
   double rate_hz = 1000.0;                   // control rate [Hz]
   int jobs = 1;                              // worker threads for independent runs
+  // Where the sweep's runs go (pedalwave::campaign): backend local (jobs threads, the default) or
+  // slurm (job arrays; campaign folders under campaign.slurm.dir, empty = out_dir/campaign). Its
+  // jobs and progress are this struct's.
+  campaign::Options campaign;
   bool progress = true;                      // progress bars on stderr
   bool plots = true;                         // write figures
   std::ostream* log = nullptr;               // printed numbers (nullptr = std::cout)
@@ -135,7 +139,7 @@ struct SweepResult {
   std::size_t best = 0;        // index of the highest speed (ties: the smallest k_c)
   double v0 = kNaN;            // speed at k_c = 0 [m/s] (a grid point, or an extra run)
   double gain = kNaN;          // points[best].speed / v0 − 1 [-]
-  double wall_s = 0.0;         // wall time of the grid runs [s]
+  double wall_s = 0.0;         // wall time of the grid runs [s] (slurm: submission to gathering)
   double cpu_s = 0.0;          // summed CPU time of the grid runs [s]
   double realtime_factor = 0.0;  // simulated seconds (all runs) per wall second
   int jobs = 1;

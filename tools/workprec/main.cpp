@@ -15,7 +15,6 @@
 #include "pedalwave/toolkit/cli.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -25,8 +24,8 @@
 #include <map>
 #include <mutex>
 #include <sstream>
-#include <thread>
 
+#include "pedalwave/campaign/campaign.hpp"
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/config/shipped.hpp"
 #include "pedalwave/model/stability.hpp"
@@ -56,36 +55,32 @@ struct Job {
   RunResult result;
 };
 
-// Runs jobs on `threads` threads, longest first, with a progress bar.
+// Runs jobs on `threads` threads (the campaign layer's pool), longest first, with a progress bar.
 void run_jobs(std::vector<Job*>& jobs, int threads, const std::string& label, bool quiet) {
   std::sort(jobs.begin(), jobs.end(), [](const Job* a, const Job* b) { return a->est_cost > b->est_cost; });
   tk::Progress::Options po;
   if (quiet) po.style = tk::Progress::Style::silent;
   tk::Progress progress(label, jobs.size(), po);
-  std::atomic<size_t> next{0};
-  auto worker = [&] {
-    for (size_t i; (i = next.fetch_add(1)) < jobs.size();) {
-      Job& j = *jobs[i];
-      j.result = run_once(j.spec, j.record);
-      // Short runs: repeat and take the median time (the first run's trajectory is kept).
-      if (j.result.status == RunStatus::kOk && j.repeats > 1 && j.result.cpu_s < 1.0) {
-        std::vector<double> wall{j.result.wall_s}, cpu{j.result.cpu_s};
-        for (int r = 1; r < j.repeats; ++r) {
-          const RunResult x = run_once(j.spec, false);
-          wall.push_back(x.wall_s);
-          cpu.push_back(x.cpu_s);
+  pedalwave::campaign::parallel_for(
+      jobs.size(), threads,
+      [&](std::size_t i) {
+        Job& j = *jobs[i];
+        j.result = run_once(j.spec, j.record);
+        // Short runs: repeat and take the median time (the first run's trajectory is kept).
+        if (j.result.status == RunStatus::kOk && j.repeats > 1 && j.result.cpu_s < 1.0) {
+          std::vector<double> wall{j.result.wall_s}, cpu{j.result.cpu_s};
+          for (int r = 1; r < j.repeats; ++r) {
+            const RunResult x = run_once(j.spec, false);
+            wall.push_back(x.wall_s);
+            cpu.push_back(x.cpu_s);
+          }
+          std::sort(wall.begin(), wall.end());
+          std::sort(cpu.begin(), cpu.end());
+          j.result.wall_s = wall[wall.size() / 2];
+          j.result.cpu_s = cpu[cpu.size() / 2];
         }
-        std::sort(wall.begin(), wall.end());
-        std::sort(cpu.begin(), cpu.end());
-        j.result.wall_s = wall[wall.size() / 2];
-        j.result.cpu_s = cpu[cpu.size() / 2];
-      }
-      progress.advance();
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
-  for (auto& t : pool) t.join();
+      },
+      [&] { progress.advance(); });
   progress.finish();
 }
 

@@ -3,6 +3,8 @@
 #include <time.h>
 
 #include <algorithm>
+#include <chrono>
+#include <ctime>
 #include <cctype>
 #include <numeric>
 #include <stdexcept>
@@ -73,6 +75,46 @@ void McapRecorder::close() { writer_->close(); }
 
 std::uint64_t McapRecorder::messages() const {
   return std::accumulate(counts_.begin(), counts_.end(), std::uint64_t{0});
+}
+
+RecordingThread::RecordingThread(const SubscriberConfig& config, const std::string& path,
+                                 McapRecorderOptions options)
+    : subscriber_(std::make_unique<TelemetrySubscriber>(config)),
+      recorder_(std::make_unique<McapRecorder>(path, subscriber_->topics(), options)) {
+  subscriber_->add_raw_listener(*recorder_);
+  thread_ = std::thread([this] {
+    while (!stop_.load()) subscriber_->poll(std::chrono::milliseconds(20));
+  });
+}
+
+RecordingThread::~RecordingThread() { stop(); }
+
+std::string RecordingThread::stop() {
+  if (stopped_) return error_;
+  stopped_ = true;
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+  while (subscriber_->poll(std::chrono::milliseconds(0)) > 0) {
+  }
+  try {
+    recorder_->close();
+  } catch (const std::exception& e) {
+    error_ = e.what();
+  }
+  if (error_.empty()) error_ = recorder_->error();
+  return error_;
+}
+
+std::string expand_time(const std::string& pattern, std::int64_t unix_s) {
+  const auto t = static_cast<time_t>(unix_s);
+  tm utc{};
+  gmtime_r(&t, &utc);
+  char stamp[32];
+  std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", &utc);
+  std::string out = pattern;
+  for (std::size_t k = out.find("{time}"); k != std::string::npos; k = out.find("{time}", k))
+    out.replace(k, 6, stamp);
+  return out;
 }
 
 }  // namespace pedalwave::telemetry

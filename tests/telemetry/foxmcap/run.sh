@@ -13,12 +13,20 @@
 #     ros2msg schema, offered_qos_profiles), every message of every channel decoded and equal to
 #     the CSV recording (same cycle / event_seq) or consistent with it (standard topics).
 #
-#   run.sh SYNTH MONITOR WORK_DIR
+# And the daemon's own recorder (telemetry.record): the demo configuration (lockstep simulated
+# plant, 1 kHz, 100 Hz state topics) for 3 s with `record: daemon.mcap`, watched by a monitor
+# recording CSV; check_mcap.mjs then reads daemon.mcap against that CSV the same way (every event
+# and the description found, most best-effort samples, all equal).
+#
+#   run.sh SYNTH MONITOR WORK_DIR [DAEMON CONFIG_DIR]
 # exit 77 (ctest: skipped) with a loud SKIPPED line without node/npm or the npm registry.
 set -euo pipefail
 synth=$(realpath "$1")
 monitor=$(realpath "$2")
-work=$3
+mkdir -p "$3"
+work=$(realpath "$3")
+daemon=${4:+$(realpath "$4")}
+cfgdir=${5:+$(realpath "$5")}
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 
 skip() {
@@ -60,8 +68,9 @@ cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done; }
 trap cleanup EXIT
 
 common=(--robot demo --domain "$domain" --localhost-only --no-view --duration 4.5)
-"$synth" --robot demo --domain "$domain" --interface lo --rate 200 --fault-every 0.5 --duration 7 >synth.log 2>&1 &
-pids+=($!)
+"$synth" --robot demo --domain "$domain" --interface lo --rate 200 --fault-every 0.5 --duration 6 >synth.log 2>&1 &
+synth_pid=$!
+pids+=($synth_pid)
 "$monitor" "${common[@]}" --record run.csv >monitor_csv.log 2>&1 &
 csv_pid=$!
 pids+=($csv_pid)
@@ -82,4 +91,23 @@ wait "$mcap_pid" || { cat monitor_mcap.log >&2; echo "FAILED: the MCAP monitor e
 cat monitor_mcap.log
 node foxglove_client.mjs --check fox.json run
 node check_mcap.mjs run.mcap run
+
+if [[ -n "$daemon" ]]; then
+  wait "$synth_pid" || true  # the stand-in robot "demo" gone before the daemon's "demo" starts
+  rm -f daemon.mcap daemon_run.*.csv
+  sed -e "s|^duration: .*|duration: 3|" -e "s|\.\./scenes/|$cfgdir/scenes/|" \
+      -e "s|^  enabled: true|  enabled: true\n  localhost_only: true\n  domain_id: $domain\n  record: $work/daemon.mcap|" \
+      "$cfgdir/runtime/demo.yaml" > daemon.yaml
+  "$monitor" --robot demo --domain "$domain" --localhost-only --no-view --duration 5 --record daemon_run.csv \
+      >monitor_daemon.log 2>&1 &
+  mon_pid=$!
+  pids+=($mon_pid)
+  sleep 0.5
+  rc=0
+  "$daemon" -c daemon.yaml >daemon.log 2>&1 || rc=$?
+  ((rc == 0)) || { cat daemon.log >&2; echo "FAILED: the daemon exited with $rc" >&2; exit 1; }
+  wait "$mon_pid" || { cat monitor_daemon.log >&2; echo "FAILED: the daemon's monitor exited with $?" >&2; exit 1; }
+  grep -E "recording" daemon.log
+  node check_mcap.mjs daemon.mcap daemon_run
+fi
 echo "foxglove/mcap: all passed"

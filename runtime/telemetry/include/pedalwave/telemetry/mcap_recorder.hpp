@@ -17,8 +17,10 @@
 // real-time thread. Not thread-safe.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
+#include <thread>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -69,5 +71,39 @@ class McapRecorder final : public RawMessageListener {
   std::vector<std::uint64_t> counts_;
   std::string error_;
 };
+
+// The daemon's recorder (config key telemetry.record): a TelemetrySubscriber of its own in the
+// robot's process (same domain: Cyclone hands the robot's messages to it locally, the serialized
+// samples as written, no network) feeding a McapRecorder, polled on a thread of its own — never the
+// real-time loop's, never the telemetry publisher's (a slow disk delays only this thread; what it
+// cannot take in time, a best-effort topic's reader history overwrites, the events' does not).
+class RecordingThread {
+ public:
+  // Opens the file (throws as McapRecorder) and starts the thread.
+  RecordingThread(const SubscriberConfig& config, const std::string& path,
+                  McapRecorderOptions options = {});
+  ~RecordingThread();  // stop()
+  RecordingThread(const RecordingThread&) = delete;
+  RecordingThread& operator=(const RecordingThread&) = delete;
+
+  // Stops the thread, takes what has arrived since, writes the summary and closes the file.
+  // Returns the first error ("" = none). Idempotent.
+  std::string stop();
+  const std::string& path() const { return recorder_->path(); }
+  std::uint64_t messages() const { return recorder_->messages(); }  // after stop()
+  std::size_t topics() const { return subscriber_->topics().size(); }
+
+ private:
+  std::unique_ptr<TelemetrySubscriber> subscriber_;
+  std::unique_ptr<McapRecorder> recorder_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+  bool stopped_ = false;
+  std::string error_;
+};
+
+// `pattern` with every "{time}" replaced by the UTC time `unix_s` as 20260101T120000Z (a file per
+// daemon start: a restarted service does not overwrite the recording of the run before).
+std::string expand_time(const std::string& pattern, std::int64_t unix_s);
 
 }  // namespace pedalwave::telemetry

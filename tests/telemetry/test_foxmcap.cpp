@@ -165,7 +165,15 @@ TEST(FoxgloveServer, ListensOnAFreePortAndRefusesOneInUse) {
     telemetry::FoxgloveServer b(sub.topics(), {.address = "127.0.0.1", .port = a.port()});
     FAIL() << "a second server on port " << a.port();
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("127.0.0.1:" + std::to_string(a.port())), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("127.0.0.1:" + std::to_string(a.port()) + ": Address already in use"),
+              std::string::npos)
+        << e.what();
+  }
+  try {
+    telemetry::FoxgloveServer c(sub.topics(), {.address = "localhost:1", .port = 0});
+    FAIL() << "a bad address";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("address \"localhost:1\": expected an IPv4 address"), std::string::npos)
         << e.what();
   }
   EXPECT_THROW(telemetry::FoxgloveServer(sub.topics(), {.port = 70000}), std::invalid_argument);

@@ -125,7 +125,7 @@ int main(int argc, char** argv) {
                  "connection ws://ADDRESS:PORT; 0: any free port)")
       ->check(CLI::Range(0, 65535));
   app.add_option("--foxglove-address", foxglove_address,
-                 "address the Foxglove server listens on (0.0.0.0: every interface)")
+                 "IPv4 address the Foxglove server listens on (0.0.0.0: every interface)")
       ->capture_default_str();
   app.add_option("--duration", duration_s, "stop after this many seconds (0: until Ctrl-C)")
       ->check(CLI::NonNegativeNumber);

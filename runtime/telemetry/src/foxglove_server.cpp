@@ -1,8 +1,13 @@
 #include "pedalwave/telemetry/foxglove_server.hpp"
 
+#include <arpa/inet.h>
 #include <libwebsockets.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
+
+#include <cerrno>
 
 #include <cstdio>
 #include <cstring>
@@ -229,6 +234,25 @@ int callback(lws* wsi, lws_callback_reasons reason, void* /*user*/, void* in, st
   return impl->on_callback(wsi, reason, in, len);
 }
 
+// Why `address`:`port` cannot be listened on ("" = it can), found by binding a socket of our own
+// the way libwebsockets will (SO_REUSEADDR): a clear reason (libwebsockets only says it failed),
+// and its failure path is never taken in the common cases.
+std::string listen_problem(const std::string& address, int port) {
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  if (::inet_pton(AF_INET, address.c_str(), &a.sin_addr) != 1) return "not an IPv4 address";
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return std::strerror(errno);
+  const int one = 1;
+  ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+  std::string why;
+  if (::bind(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0 || ::listen(fd, 1) != 0)
+    why = std::strerror(errno);
+  ::close(fd);
+  return why;
+}
+
 void lws_log_line(int level, const char* line) {
   std::fprintf(stderr, "foxglove server (libwebsockets %s): %s", level == LLL_ERR ? "error" : "warning", line);
 }
@@ -243,6 +267,12 @@ FoxgloveServer::FoxgloveServer(const std::vector<TopicInfo>& topics, FoxgloveSer
   if (m.opt.port < 0 || m.opt.port > 65535)
     throw std::invalid_argument("foxglove server: port " + std::to_string(m.opt.port) +
                                 ": expected 0 … 65535");
+  if (in_addr a{}; ::inet_pton(AF_INET, m.opt.address.c_str(), &a) != 1)
+    throw std::invalid_argument("foxglove server: address \"" + m.opt.address +
+                                "\": expected an IPv4 address (127.0.0.1, 0.0.0.0 for every interface)");
+  if (const std::string why = listen_problem(m.opt.address, m.opt.port); !why.empty())
+    throw std::runtime_error("foxglove server: cannot listen on " + m.opt.address + ":" +
+                             std::to_string(m.opt.port) + ": " + why);
   Json channels = Json::array();
   for (std::size_t i = 0; i < topics.size(); ++i) {
     channels.push_back({{"id", i + 1},

@@ -29,7 +29,7 @@
 namespace pedalwave::telemetry {
 
 struct FoxgloveServerOptions {
-  std::string address = "127.0.0.1";       // interface address to listen on ("0.0.0.0": all)
+  std::string address = "127.0.0.1";       // IPv4 address to listen on ("0.0.0.0": all)
   int port = 8765;                          // TCP port (Foxglove's default 8765)
   std::string name = "pedalwave";           // serverInfo.name
   std::size_t max_queued_bytes = 8u << 20;  // [bytes] per client waiting to be sent

@@ -6,12 +6,13 @@ pkgs=(cmake ninja-build g++ clang libeigen3-dev libspdlog-dev libyaml-cpp-dev li
       libgtest-dev libgmock-dev libbenchmark-dev cyclonedds-dev cyclonedds-tools rt-tests
       librsvg2-bin can-utils libclang-rt-14-dev
       libzstd-dev liblz4-dev pkg-config  # pedalwave::mcap (MCAP chunk compression)
-      libwebsockets-dev nlohmann-json3-dev  # the Foxglove WebSocket server (pedalwave_monitor --foxglove)
       dpkg-dev file adduser systemd)  # the Debian package: dpkg-shlibdeps, CPack's ELF check,
                                       # the service user, systemd-analyze verify of the unit
 # ROS 2 .msg -> IDL at build time (rosidl_adapter needs empy and lark), and the cross-host
 # telemetry test's network namespaces (ip netns, veth).
 pkgs+=(python3-rosidl rosidl-tools python3-empy python3-lark iproute2)
+# The Foxglove WebSocket server of pedalwave_monitor --foxglove (WebSocket, its JSON messages).
+pkgs+=(libwebsockets-dev nlohmann-json3-dev)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

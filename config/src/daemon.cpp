@@ -239,7 +239,7 @@ bool ros_namespace_ok(const std::string& ns) {
 void read_telemetry(const Reader& r, DaemonConfig& c) {
   r.allow_only({"enabled", "domain_id", "interface", "localhost_only", "peers", "namespace",
                 "stamp_clock", "standard_topics", "decimation_state", "decimation_timing",
-                "commands", "amplitude_max", "omega_max", "eta_min", "eta_max"});
+                "commands", "amplitude_max", "omega_max", "eta_min", "eta_max", "record"});
   TelemetrySection& t = c.telemetry;
   t.enabled = r.boolean("enabled", true);
   t.has_domain_id = r.has("domain_id");
@@ -278,6 +278,13 @@ void read_telemetry(const Reader& r, DaemonConfig& c) {
   t.eta_min = r.bounded("eta_min", t.eta_min, -2 * M_PI, 2 * M_PI, "rad");
   t.eta_max = r.bounded("eta_max", t.eta_max, -2 * M_PI, 2 * M_PI, "rad");
   check_order(r, "eta_min", t.eta_min, "eta_max", t.eta_max);
+  t.record = r.string("record", "");
+  if (r.has("record")) {
+    const std::string& f = t.record;
+    const bool mcap = f.size() > 5 && f.compare(f.size() - 5, 5, ".mcap") == 0;
+    if (!mcap || f.find_first_of("\n\r") != std::string::npos)
+      r["record"].fail("a file name ending in .mcap (e.g. /var/lib/pedalwave/run-{time}.mcap)");
+  }
 }
 
 // Timeouts from the rate and the bus unless the file gives them (README "Timeouts"):

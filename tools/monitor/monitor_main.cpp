@@ -1,17 +1,22 @@
 // pedalwave_monitor: discovers a pedalwave robot on a DDS domain and shows its telemetry live
 // (a screen refreshed in place with ANSI codes when stdout is a terminal), optionally recording
-// every topic to CSV (one file per topic: FILE.<topic>.csv), optionally sending one operator
-// command. Says when the robot goes silent and when it comes back. Ctrl-C exits cleanly.
+// every topic to CSV (one file per topic: FILE.<topic>.csv) or to one MCAP file (FILE.mcap: every
+// topic incl. the standard ones, ros2msg schemas, the CDR bytes as received; Foxglove and `ros2
+// bag` open it), optionally serving the Foxglove WebSocket protocol for a live view in Foxglove
+// (--foxglove PORT), optionally sending one operator command. Says when the robot goes silent and
+// when it comes back. Ctrl-C exits cleanly.
 //
 //   pedalwave_monitor [--robot NAME] [--namespace /NS] [--domain 0] [--interface IF |
-//                     --localhost-only] [--peer ADDR]... [--record run.csv] [--duration S]
+//                     --localhost-only] [--peer ADDR]... [--record run.csv|run.mcap]
+//                     [--foxglove PORT [--foxglove-address 127.0.0.1]] [--duration S]
 //                     [--once] [--silence-timeout 1.0] [--refresh 5] [--no-view]
 //                     [--command start|stop|estop|gait --amplitude A --omega W --eta E
 //                      [--ack-timeout 5]]
 // Domain and discovery as a ROS 2 node: --domain, else ROS_DOMAIN_ID, else 0; --interface or
 // --localhost-only, else CYCLONEDDS_URI / ROS_LOCALHOST_ONLY=1, else Cyclone's own choice.
 // --command sends one command to the robot and exits on its final ack.
-// Exit status: 0 normal end (--command: the robot executed it); 1 configuration/DDS error;
+// Exit status: 0 normal end (--command: the robot executed it); 1 configuration/DDS error, or
+// the MCAP recording failed (disk full, …: the file keeps its completed chunks);
 // 2 bad input, or --once and nothing complete arrived; 3 --command rejected (by the robot's
 // checks, its mailbox or its real-time loop); 4 --command without a final ack in time (no
 // robot, or no answer).
@@ -29,6 +34,8 @@
 #include <memory>
 #include <optional>
 
+#include "pedalwave/telemetry/foxglove_server.hpp"
+#include "pedalwave/telemetry/mcap_recorder.hpp"
 #include "pedalwave/telemetry/monitor_view.hpp"
 #include "pedalwave/telemetry/recorder.hpp"
 #include "pedalwave/telemetry/subscriber.hpp"
@@ -103,8 +110,23 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--peer", cfg.peers, "extra unicast discovery peer (repeatable)");
+  // Recording and the Foxglove live view (MCAP: by the file's extension).
+  std::string mcap_compression = "zstd";
+  std::optional<int> foxglove_port;
+  std::string foxglove_address = "127.0.0.1";
   app.add_option("--record", record,
-                 "record every topic to CSV: FILE.csv -> FILE.<topic>.csv, one file per topic");
+                 "record every topic: FILE.mcap -> one MCAP file (every topic incl. the standard "
+                 "ones, CDR as received); FILE.csv -> FILE.<topic>.csv, one file per topic");
+  app.add_option("--mcap-compression", mcap_compression, "MCAP chunk compression")
+      ->check(CLI::IsMember({"zstd", "lz4", "none"}))
+      ->capture_default_str();
+  app.add_option("--foxglove", foxglove_port,
+                 "serve the Foxglove WebSocket protocol on this TCP port (Foxglove: open "
+                 "connection ws://ADDRESS:PORT; 0: any free port)")
+      ->check(CLI::Range(0, 65535));
+  app.add_option("--foxglove-address", foxglove_address,
+                 "IPv4 address the Foxglove server listens on (0.0.0.0: every interface)")
+      ->capture_default_str();
   app.add_option("--duration", duration_s, "stop after this many seconds (0: until Ctrl-C)")
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--once", once,
@@ -148,10 +170,30 @@ int main(int argc, char** argv) {
   const bool live_view = !no_view && !once && tty && !command_mode;
   std::unique_ptr<telemetry::TelemetrySubscriber> sub;
   std::unique_ptr<telemetry::CsvRecorder> recorder;
+  std::unique_ptr<telemetry::McapRecorder> mcap;
+  std::unique_ptr<telemetry::FoxgloveServer> foxglove;
   telemetry::MonitorState state(static_cast<std::int64_t>(silence_s * 1e9));
+  const bool record_mcap = telemetry::is_mcap_path(record);
+  if (record_mcap || foxglove_port) cfg.standard_topics = true;  // every topic, as ROS 2 sees it
   try {
     sub = std::make_unique<telemetry::TelemetrySubscriber>(cfg);
-    if (!record.empty()) recorder = std::make_unique<telemetry::CsvRecorder>(record);
+    if (record_mcap) {
+      mcap = std::make_unique<telemetry::McapRecorder>(
+          record, sub->topics(),
+          telemetry::McapRecorderOptions{.compression = mcap::compression_from_string(mcap_compression)});
+      sub->add_raw_listener(*mcap);
+    } else if (!record.empty()) {
+      recorder = std::make_unique<telemetry::CsvRecorder>(record);
+    }
+    if (foxglove_port) {
+      foxglove = std::make_unique<telemetry::FoxgloveServer>(
+          sub->topics(), telemetry::FoxgloveServerOptions{.address = foxglove_address,
+                                                          .port = *foxglove_port,
+                                                          .name = "pedalwave_monitor " + cfg.robot});
+      sub->add_raw_listener(*foxglove);
+      std::fprintf(stderr, "pedalwave_monitor: Foxglove WebSocket server on ws://%s:%d (%zu channels)\n",
+                   foxglove_address.c_str(), foxglove->port(), sub->topics().size());
+    }
   } catch (...) {
     // A refused --interface, --domain or --record value (std::invalid_argument): 2; else 1.
     return pedalwave::toolkit::cli::exit_for_current_exception("pedalwave_monitor");
@@ -257,6 +299,29 @@ int main(int argc, char** argv) {
   if (once) {
     std::fputs(state.render(now_ns(), tty).c_str(), stdout);
     if (status == 2) std::fprintf(stderr, "pedalwave_monitor: no complete telemetry within %.1f s\n", limit_s);
+  }
+  if (mcap) {
+    int rc = 0;
+    try {
+      mcap->close();
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "pedalwave_monitor: %s\n", e.what());
+      rc = 1;
+    }
+    if (!mcap->error().empty()) {
+      std::fprintf(stderr, "pedalwave_monitor: recording stopped early: %s\n", mcap->error().c_str());
+      rc = 1;
+    }
+    std::fprintf(stderr, "pedalwave_monitor: recorded %llu messages on %zu topics to %s (%u chunks, %llu bytes)\n",
+                 static_cast<unsigned long long>(mcap->messages()), sub->topics().size(),
+                 mcap->path().c_str(), mcap->stats().chunk_count,
+                 static_cast<unsigned long long>(mcap->stats().bytes_written));
+    if (status == 0) status = rc;
+  }
+  if (foxglove) {
+    std::fprintf(stderr, "pedalwave_monitor: Foxglove server sent %llu messages, dropped %llu for slow clients\n",
+                 static_cast<unsigned long long>(foxglove->messages_sent()),
+                 static_cast<unsigned long long>(foxglove->messages_dropped()));
   }
   if (recorder) {
     recorder->flush();

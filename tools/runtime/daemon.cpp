@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <ctime>
 #include <cmath>
 #include <exception>
 #include <cstdio>
@@ -36,6 +37,7 @@
 #include "pedalwave/toolkit/toolkit.hpp"
 #if PEDALWAVE_HAS_DDS
 #include "pedalwave/telemetry/dds_telemetry.hpp"
+#include "pedalwave/telemetry/mcap_recorder.hpp"
 #endif
 #if PEDALWAVE_HAS_OBSERVER
 #include "pedalwave/observer/runtime_observer.hpp"
@@ -483,6 +485,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   if (!opt.plots_dir.empty()) sinks.push_back(&recorder);
 #if PEDALWAVE_HAS_DDS
   std::unique_ptr<telemetry::DdsTelemetry> dds;
+  std::unique_ptr<telemetry::RecordingThread> recording;  // telemetry.record (MCAP)
   std::string telemetry_line = "off";
   if (cfg.telemetry.enabled && opt.telemetry) {
     // Domain and discovery: --domain, then the file, then the ROS 2 environment, then defaults.
@@ -525,6 +528,25 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
                      (tc.interface.empty() ? std::string("Cyclone's choice of interface")
                                            : "on " + tc.interface) +
                      " (" + choice.discovery_source + ")";
+    if (!cfg.telemetry.record.empty()) {
+      // Every topic as published, through a subscriber of the daemon's own on its own thread.
+      telemetry::SubscriberConfig sc;
+      sc.domain_id = tc.domain_id;
+      sc.interface = tc.interface;
+      sc.peers = tc.peers;
+      sc.robot = cfg.name;
+      sc.ros_namespace = cfg.telemetry.ros_namespace;
+      sc.standard_topics = tc.standard_topics;
+      sc.sender = "pedalwave_runtime recorder";
+      const std::string path = telemetry::expand_time(cfg.telemetry.record, static_cast<std::int64_t>(::time(nullptr)));
+      try {
+        recording = std::make_unique<telemetry::RecordingThread>(sc, path);
+      } catch (const std::runtime_error& e) {
+        throw BadInput((cfg.source.empty() ? cfg.name : cfg.source) + ": telemetry.record = \"" +
+                       cfg.telemetry.record + "\": " + e.what());
+      }
+      telemetry_line += ", recording to " + path;
+    }
   }
 #else
   const std::string telemetry_line = "off";
@@ -561,6 +583,11 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   if (console.joinable()) console.join();
   res.summary = consumer.stop(&res.run);
 #if PEDALWAVE_HAS_DDS
+  if (recording) {  // everything published has reached it (locally): close the file
+    const std::string err = recording->stop();
+    out << "recording: " << recording->path() << ": " << recording->messages() << " messages on "
+        << recording->topics() << " topics" << (err.empty() ? "" : ": *** " + err) << "\n";
+  }
   dds.reset();
 #endif
   if (loop_error) std::rethrow_exception(loop_error);  // not an orderly end: the marker stays

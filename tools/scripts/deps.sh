@@ -12,6 +12,8 @@ pkgs=(cmake ninja-build g++ clang libeigen3-dev libspdlog-dev libyaml-cpp-dev li
 # ROS 2 .msg -> IDL at build time (rosidl_adapter needs empy and lark), and the cross-host
 # telemetry test's network namespaces (ip netns, veth).
 pkgs+=(python3-rosidl rosidl-tools python3-empy python3-lark iproute2)
+# The Foxglove WebSocket server of pedalwave_monitor --foxglove (WebSocket, its JSON messages).
+pkgs+=(libwebsockets-dev nlohmann-json3-dev)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

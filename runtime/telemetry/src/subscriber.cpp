@@ -6,6 +6,8 @@
 #include <functional>
 #include <thread>
 
+#include <dds/ddsi/ddsi_serdata.h>
+
 #include "convert.hpp"
 #include "domain.hpp"
 
@@ -21,12 +23,47 @@ std::int64_t monotonic_ns() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-// One reader and how to dispatch its samples.
+// One reader and how to dispatch its samples. Samples are taken serialized (dds_takecdr): the
+// bytes go to the raw listeners as they are, then they are deserialized into `sample` (reused,
+// its strings and sequences reallocated by Cyclone as needed) for the decoded listeners.
 struct ReaderSlot {
   dds_entity_t reader = 0;
   dds_entity_t cond = 0;
+  const dds_topic_descriptor_t* desc = nullptr;
+  std::shared_ptr<void> sample;
   std::function<void(const void*, const MessageInfo&)> dispatch;
 };
+
+// "pedalwave::msg::dds_::JointState_" → "pedalwave/msg/JointState".
+std::string ros_type_name(const char* dds_name) {
+  std::string s = dds_name;
+  std::string out;
+  for (std::size_t i = 0; i < s.size();) {
+    if (s.compare(i, 2, "::") == 0) {
+      out += '/';
+      i += 2;
+    } else {
+      out += s[i++];
+    }
+  }
+  if (const auto k = out.find("/dds_/"); k != std::string::npos) out.erase(k, 5);
+  if (!out.empty() && out.back() == '_') out.pop_back();
+  return out;
+}
+
+TopicInfo topic_info(const char* dds_topic, const dds_topic_descriptor_t* desc, QosClass qc) {
+  TopicInfo t;
+  t.topic = std::string(dds_topic).substr(2);  // DDS "rt/x" = ROS "/x"
+  t.type = ros_type_name(desc->m_typename);
+  switch (qc) {
+    case QosClass::kState: t = {t.topic, t.type, false, false, static_cast<unsigned>(kStateWriterDepth)}; break;
+    case QosClass::kEvent: t = {t.topic, t.type, true, true, static_cast<unsigned>(kEventDepth)}; break;
+    case QosClass::kDescription: t = {t.topic, t.type, true, true, 1}; break;
+    case QosClass::kCommand: t = {t.topic, t.type, true, false, static_cast<unsigned>(kCommandDepth)}; break;
+    case QosClass::kRos: t = {t.topic, t.type, true, false, 10}; break;
+  }
+  return t;
+}
 
 }  // namespace
 
@@ -40,6 +77,9 @@ struct TelemetrySubscriber::Impl {
   std::size_t joint_reader_index = 0;   // readers[] slot of joint_state
   std::size_t ack_reader_index = 0;     // readers[] slot of command_ack
   std::vector<TelemetryListener*> listeners;
+  std::vector<RawMessageListener*> raw_listeners;
+  std::vector<TopicInfo> topic_infos;   // readers[i]'s topic
+  std::vector<std::byte> raw;           // one serialized sample
   TopicNames topics{""};
 
   template <typename Msg, typename Decoded>
@@ -53,6 +93,11 @@ struct TelemetrySubscriber::Impl {
     check(r, "dds_create_reader");
     ReaderSlot slot;
     slot.reader = r;
+    slot.desc = desc;
+    slot.sample = std::shared_ptr<void>(dds_alloc(desc->m_size), [desc](void* p) {
+      dds_sample_free(p, desc, DDS_FREE_ALL);
+    });
+    topic_infos.push_back(topic_info(name, desc, qc));
     slot.cond = check(dds_create_readcondition(r, DDS_ANY_STATE), "dds_create_readcondition");
     check(dds_waitset_attach(waitset, slot.cond, static_cast<dds_attach_t>(readers.size())),
           "dds_waitset_attach");
@@ -142,6 +187,17 @@ void TelemetrySubscriber::remove_listener(TelemetryListener& l) {
   v.erase(std::remove(v.begin(), v.end(), &l), v.end());
 }
 
+void TelemetrySubscriber::add_raw_listener(RawMessageListener& l) {
+  impl_->raw_listeners.push_back(&l);
+}
+
+void TelemetrySubscriber::remove_raw_listener(RawMessageListener& l) {
+  auto& v = impl_->raw_listeners;
+  v.erase(std::remove(v.begin(), v.end(), &l), v.end());
+}
+
+const std::vector<TopicInfo>& TelemetrySubscriber::topics() const { return impl_->topic_infos; }
+
 std::size_t TelemetrySubscriber::poll(std::chrono::nanoseconds timeout) {
   Impl& m = *impl_;
   std::vector<dds_attach_t> triggered(m.readers.size());
@@ -151,21 +207,31 @@ std::size_t TelemetrySubscriber::poll(std::chrono::nanoseconds timeout) {
   constexpr std::uint32_t kBatch = 64;
   std::size_t dispatched = 0;
   // Every reader, not only the triggered ones: keeps the topics in step within one poll.
-  for (const ReaderSlot& slot : m.readers) {
+  for (std::size_t r = 0; r < m.readers.size(); ++r) {
+    const ReaderSlot& slot = m.readers[r];
     for (;;) {
-      std::array<void*, kBatch> buf{};
+      std::array<ddsi_serdata*, kBatch> buf{};
       std::array<dds_sample_info_t, kBatch> info{};
-      const dds_return_t got = dds_take(slot.cond, buf.data(), info.data(), kBatch, kBatch);
+      const dds_return_t got = dds_takecdr(slot.cond, buf.data(), kBatch, info.data(), DDS_ANY_STATE);
       if (got <= 0) break;
       const std::int64_t now = monotonic_ns();
       for (dds_return_t i = 0; i < got; ++i) {
-        const auto& si = info[static_cast<std::size_t>(i)];
-        if (!si.valid_data) continue;
-        const MessageInfo mi{now, si.source_timestamp, si.publication_handle};
-        slot.dispatch(buf[static_cast<std::size_t>(i)], mi);
-        ++dispatched;
+        const auto k = static_cast<std::size_t>(i);
+        const auto& si = info[k];
+        if (si.valid_data) {
+          const MessageInfo mi{now, si.source_timestamp, si.publication_handle};
+          if (!m.raw_listeners.empty()) {
+            m.raw.resize(ddsi_serdata_size(buf[k]));
+            ddsi_serdata_to_ser(buf[k], 0, m.raw.size(), m.raw.data());
+            for (RawMessageListener* l : m.raw_listeners) l->on_raw(r, m.raw, mi);
+          }
+          if (ddsi_serdata_to_sample(buf[k], slot.sample.get(), nullptr, nullptr)) {
+            slot.dispatch(slot.sample.get(), mi);
+            ++dispatched;
+          }
+        }
+        ddsi_serdata_unref(buf[k]);
       }
-      dds_return_loan(slot.cond, buf.data(), got);
       if (static_cast<std::uint32_t>(got) < kBatch) break;
     }
   }

@@ -51,6 +51,8 @@ struct TelemetrySection {
   double amplitude_max = 1.2;         // kSetGait bounds: A_p ≤ [rad]
   double omega_max = 12.0;            // ω ≤ [rad/s]
   double eta_min = -3.2, eta_max = 3.2;  // η range [rad]
+  // Record every topic to this MCAP file ("" = no recording; "{time}" = the UTC start time).
+  std::string record;
 };
 
 struct DaemonConfig {

@@ -11,7 +11,9 @@
 
 #include <chrono>
 #include <cstdint>
+#include <cstddef>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -41,6 +43,25 @@ class TelemetryListener {
   virtual void on_tf(const TfMsg&, const MessageInfo&) {}
 };
 
+// One subscribed topic as a recorder or a relay sees it: the ROS 2 name, type and the QoS the
+// robot's writer offers (README.md, "QoS, and why").
+struct TopicInfo {
+  std::string topic;            // ROS name: "/demo/joint_states", "/diagnostics"
+  std::string type;             // ROS 2 type: "sensor_msgs/msg/JointState"
+  bool reliable = true;         // the writer's reliability (else best-effort)
+  bool transient_local = false; // the writer's durability (else volatile)
+  unsigned depth = 10;          // the writer's keep-last depth
+};
+
+// Receives every valid message as the serialized bytes taken from DDS, unchanged: CDR with its
+// 4-byte encapsulation header (XCDR1, as rmw_cyclonedds and rosbag2 have them). `topic` indexes
+// TelemetrySubscriber::topics(). Called inside poll(), before the decoded listeners.
+class RawMessageListener {
+ public:
+  virtual ~RawMessageListener() = default;
+  virtual void on_raw(std::size_t topic, std::span<const std::byte> cdr, const MessageInfo&) = 0;
+};
+
 class TelemetrySubscriber {
  public:
   // Validates config (throws std::invalid_argument); creates participant, readers and the command
@@ -53,6 +74,10 @@ class TelemetrySubscriber {
   // Listeners are called in the order added; they must outlive the subscriber (or be removed).
   void add_listener(TelemetryListener& l);
   void remove_listener(TelemetryListener& l);
+  void add_raw_listener(RawMessageListener& l);
+  void remove_raw_listener(RawMessageListener& l);
+  // Every topic subscribed, in a fixed order (RawMessageListener's index).
+  const std::vector<TopicInfo>& topics() const;
 
   // Waits up to `timeout` for data on any topic, then takes everything available from every
   // reader and dispatches it. Returns the number of messages dispatched (0 on timeout).

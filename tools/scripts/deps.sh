@@ -11,6 +11,9 @@ pkgs=(cmake ninja-build g++ clang libeigen3-dev libspdlog-dev libyaml-cpp-dev li
 # ROS 2 .msg -> IDL at build time (rosidl_adapter needs empy and lark), and the cross-host
 # telemetry test's network namespaces (ip netns, veth).
 pkgs+=(python3-rosidl rosidl-tools python3-empy python3-lark iproute2)
+# DDS Security: the keystore checks (libssl-dev) and tools/scripts/keystore.sh (openssl); the
+# Cyclone security plugins come with libddsc0debian.
+pkgs+=(libssl-dev openssl)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

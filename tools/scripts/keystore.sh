@@ -127,8 +127,9 @@ fi
 
 if [ "$cmd" = robot ]; then
   [[ "$name" =~ ^[A-Za-z0-9_.-]{1,63}$ ]] || die "robot name '$name': expected 1..63 of [A-Za-z0-9_.-]"
-  if [ -z "$ns" ]; then ns=/$(printf '%s' "$name" | sed 's/[^A-Za-z0-9_]/_/g; s/^\([0-9]\)/_\1/'); fi
-  [ -n "$enclave" ] || enclave=/pedalwave/$name
+  sane=$(printf '%s' "$name" | sed 's/[^A-Za-z0-9_]/_/g; s/^\([0-9]\)/_\1/')
+  [ -n "$ns" ] || ns=/$sane                       # the daemon's default namespace
+  [ -n "$enclave" ] || enclave=/pedalwave/$sane   # the daemon's default enclave
 fi
 [[ "$enclave" =~ ^(/[A-Za-z0-9_]+)+$ ]] || die "enclave '$enclave': expected /name[/name...] of [A-Za-z0-9_]"
 

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <cstdlib>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -150,4 +151,39 @@ TEST_F(Keystore, CycloneGetsThePluginsAndTheEnclaveFiles) {
                         "dds.sec.crypto.library.path"}) {
     EXPECT_FALSE(p[k].empty()) << k;
   }
+}
+
+// The OpenSSL checks on real files (keystore.sh, openssl): a good enclave passes, an expired one
+// and permissions for another domain are refused naming the file (the daemon's refusals end to
+// end: security_test.sh).
+TEST_F(Keystore, RealEnclavesFromTheKeystoreTool) {
+  if (std::system("command -v openssl >/dev/null 2>&1") != 0) GTEST_SKIP() << "SKIPPED: no openssl";
+  const std::string ks = (root / "ks").string();
+  const std::string tool = PEDALWAVE_KEYSTORE_SH;
+  const std::string cmd = "'" + tool + "' init '" + ks + "' >/dev/null && '" + tool + "' robot '" +
+                          ks + "' snake1 --domain 7 >/dev/null && '" + tool + "' robot '" + ks +
+                          "' snake1 --enclave /old --days -1 --domain 7 >/dev/null";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  const SecurityConfig good{true, ks, "/pedalwave/snake1"};
+  EXPECT_NO_THROW(check_keystore(good, 7));
+  EXPECT_NE(describe_security(good).find("DDS Security ON: enclave /pedalwave/snake1 (CN=/pedalwave/snake1"),
+            std::string::npos)
+      << describe_security(good);
+  const auto error = [](const SecurityConfig& s, std::uint32_t d) -> std::string {
+    try {
+      check_keystore(s, d);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  EXPECT_EQ(error(good, 8).rfind("security: " + good.enclave_dir() +
+                                     "/permissions.p7s: grant for CN=/pedalwave/snake1 allows no "
+                                     "topic on DDS domain 8 (it is for domain 7)",
+                                 0),
+            0u)
+      << error(good, 8);
+  const SecurityConfig old{true, ks, "/old"};
+  EXPECT_EQ(error(old, 7).rfind("security: " + old.enclave_dir() + "/cert.pem: certificate expired on ", 0), 0u)
+      << error(old, 7);
 }

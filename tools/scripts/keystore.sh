@@ -2,7 +2,8 @@
 # keystore.sh: creates a DDS Security keystore for pedalwave robots, operators and monitors, with
 # Debian's openssl only. Layout and documents follow SROS2 (`ros2 security create_keystore` /
 # `create_enclave`), so a ROS 2 node started with ROS_SECURITY_KEYSTORE=<keystore> and
-# ROS_SECURITY_ENCLAVE_OVERRIDE=<enclave> finds what it expects:
+# ROS_SECURITY_ENCLAVE_OVERRIDE=<enclave> finds the files it expects (the permissions grant
+# pedalwave's topics only; see the table below):
 #
 #   <keystore>/public/ca.cert.pem                  the CA (identity CA = permissions CA, as SROS2)
 #   <keystore>/public/identity_ca.cert.pem         -> ca.cert.pem

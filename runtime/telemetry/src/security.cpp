@@ -168,9 +168,27 @@ std::time_t parse_iso(const std::string& s) {
   return timegm(&tm);
 }
 
-std::string canonical_subject(std::string s) {
-  // "CN=/a/b" vs "CN = /a/b": compare without spaces.
-  return trim(std::move(s));
+// A distinguished name as a sorted list of "key=value" (RFC 2253 from OpenSSL lists the RDNs
+// last first; a permissions document may list them first first, with or without blanks).
+std::string canonical_subject(const std::string& s) {
+  std::vector<std::string> parts;
+  std::string cur;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (s[i] == '\\' && i + 1 < s.size()) {
+      cur += s[i];
+      cur += s[++i];
+    } else if (s[i] == ',') {
+      parts.push_back(trim(cur));
+      cur.clear();
+    } else {
+      cur += s[i];
+    }
+  }
+  parts.push_back(trim(cur));
+  std::sort(parts.begin(), parts.end());
+  std::string out;
+  for (const auto& p : parts) out += p + ",";
+  return out;
 }
 
 }  // namespace
@@ -392,8 +410,8 @@ std::string describe_security(const SecurityConfig& s) {
     const X509Ptr cert = read_cert(fs::path(s.enclave_dir()) / "cert.pem");
     subject = name_of(X509_get_subject_name(cert.get()));
     until = time_of(X509_get0_notAfter(cert.get()));
-    const fs::path gov = fs::path(s.keystore) / "enclaves" / "governance.xml";
-    std::ifstream in(gov);
+    // The signed governance carries its XML as text (openssl smime -sign -text).
+    std::ifstream in(fs::path(s.enclave_dir()) / "governance.p7s");
     std::stringstream ss;
     ss << in.rdbuf();
     std::size_t pos = 0;

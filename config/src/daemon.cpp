@@ -287,6 +287,34 @@ void read_telemetry(const Reader& r, DaemonConfig& c) {
   }
 }
 
+void read_security(const Reader& r, const std::string& base_dir, DaemonConfig& c) {
+  r.allow_only({"enable", "keystore", "enclave", "strategy"});
+  SecuritySection& s = c.security;
+  s.present = true;
+  s.enable = r.boolean("enable", true);
+  s.keystore = r.string("keystore", "");
+  if (r.has("keystore")) {
+    if (s.keystore.empty()) r["keystore"].fail("an SROS2 keystore folder (tools/scripts/keystore.sh init)");
+    std::filesystem::path p(s.keystore);
+    if (p.is_relative()) p = std::filesystem::path(base_dir) / p;
+    s.keystore = p.lexically_normal().string();
+  }
+  s.enclave = r.string("enclave", "");
+  if (r.has("enclave")) {
+    // An enclave is a path of names, e.g. /pedalwave/snake1 (keystore.sh's rule).
+    bool ok = s.enclave.size() > 1 && s.enclave.front() == '/' && s.enclave.back() != '/';
+    for (std::size_t i = 0; ok && i < s.enclave.size(); ++i) {
+      const char ch = s.enclave[i];
+      ok = ch == '/' ? (i == 0 || s.enclave[i - 1] != '/')
+                     : ((ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') ||
+                        (ch >= '0' && ch <= '9') || ch == '_');
+    }
+    if (!ok) r["enclave"].fail("an enclave path: \"/\" then names [A-Za-z0-9_] separated by \"/\" "
+                               "(e.g. \"/pedalwave/snake1\")");
+  }
+  if (r.has("strategy")) s.strategy = r.choice("strategy", "enforce", {"enforce", "permissive"});
+}
+
 // Timeouts from the rate and the bus unless the file gives them (README "Timeouts"):
 //   read deadline  = wake + read_budget · period, read_budget ≥ the bus's reply window (derived:
 //                    1.25 · window + 0.2 ms, within [0.5, 0.9] of the period);
@@ -404,7 +432,7 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
                                  const std::string& base_dir) {
   const Reader r = Reader::parse(text, name);
   r.allow_only({"name", "description", "rate_hz", "duration", "robot", "driver", "controller",
-                "realtime", "observer", "telemetry", "log_file"});
+                "realtime", "observer", "telemetry", "security", "log_file"});
   DaemonConfig c;
   c.source = name;
   c.name = r.string("name", "pedalwave");
@@ -456,6 +484,7 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
     c.observer = o.boolean("enabled", true);
   }
   if (r.has("telemetry")) read_telemetry(r["telemetry"], c);
+  if (r.has("security")) read_security(r["security"], base_dir, c);
   c.log_file = r.string("log_file", "");
   // Empty: stderr. A folder cannot be the log (it would be found only when the loop starts).
   if (std::error_code ec; !c.log_file.empty() &&

@@ -347,6 +347,13 @@ const std::vector<KeyRow> kDaemonKeys = {
     {"telemetry.localhost_only", kSimDriver + "telemetry:\n  localhost_only: @\n", "true", "x", "", ""},
     {"telemetry.standard_topics", kSimDriver + "telemetry:\n  standard_topics: @\n", "false", "x", "", ""},
     {"telemetry.omega_max", kSimDriver + "telemetry:\n  omega_max: @\n", "6", "x", "1e300", "a number in (0, 100] [rad/s]"},
+    {"security.enable", kSimDriver + "security:\n  enable: @\n", "false", "x", "", ""},
+    {"security.keystore", kSimDriver + "security:\n  keystore: @\n", "/etc/pedalwave/keystore", "[1]", "",
+     ""},
+    {"security.enclave", kSimDriver + "security:\n  enclave: @\n", "/pedalwave/snake1", "[1]", "pedalwave//x",
+     "an enclave path"},
+    {"security.strategy", kSimDriver + "security:\n  strategy: @\n", "permissive", "[1]", "lenient",
+     "one of enforce, permissive"},
     // The robot a bus drives (beside a simulated plant it must be the scene's: DaemonContradictions).
     {"robot.N", kCan + "robot:\n  N: @\n", "8", "six", "65", "an integer in [2, 64]"},
     {"robot.m_l", kCan + "robot:\n  m_l: @\n", "0.2", "x", "0", "a number in (0, 1000] [kg]"},
@@ -660,7 +667,7 @@ TEST(BadInputs, EveryKeyTheReadersAcceptHasARow) {
       {"driver", "driver:\n  type: sim\n  @: 1\n"},
       {"controller.gait", kSimDriver + "controller:\n  gait:\n    @: 1\n"},
   };
-  for (const char* m : {"robot", "controller", "realtime", "observer", "telemetry"})
+  for (const char* m : {"robot", "controller", "realtime", "observer", "telemetry", "security"})
     daemon.push_back({m, kSimDriver + m + ":\n  @: 1\n"});
   expect_a_row_per_key(accepted_leaf_keys(daemon, daemon_error), kDaemonKeys);
 }

@@ -12,11 +12,14 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
 #include <thread>
+#include <vector>
 
 #include "Telemetry.h"
 #include "dds_test_support.hpp"
 #include "pedalwave/telemetry/dds_telemetry.hpp"
+#include "pedalwave/telemetry/subscriber.hpp"
 #include "pedalwave/telemetry/synthetic.hpp"
 
 namespace pedalwave::test {
@@ -69,6 +72,82 @@ std::vector<unsigned char> joint_state_cdr(std::size_t max_align, std::int64_t s
   c.doubles(vel.data(), vel.size());
   c.doubles(eff.data(), eff.size());
   return c.bytes;
+}
+
+// The e-stop topic (DDS Security can grant it more widely than the command topic): a robot honours
+// only emergency_stop there; any other kind written on it, by a plain participant from the IDL
+// alone, is REJECTED with that reason and never reaches the runtime.
+TEST(Wire, OnlyAnEmergencyStopIsHonouredOnTheEmergencyStopTopic) {
+  DomainLease lease;
+  telemetry::TelemetryConfig cfg;
+  cfg.domain_id = lease.id();
+  cfg.robot_name = "estopper";
+  std::vector<runtime::OperatorCommand> handled;   // the command thread; read after acks arrive
+  std::mutex handled_mutex;
+  telemetry::DdsTelemetry tel(cfg, [&](const runtime::OperatorCommand& c) {
+    std::lock_guard lock(handled_mutex);
+    handled.push_back(c);
+    return true;
+  });
+  struct Acks : telemetry::TelemetryListener {
+    std::vector<telemetry::CommandAckMsg> acks;
+    void on_command_ack(const telemetry::CommandAckMsg& a, const telemetry::MessageInfo&) override {
+      acks.push_back(a);
+    }
+  } acks;
+  telemetry::SubscriberConfig scfg;
+  scfg.domain_id = lease.id();
+  scfg.robot = "estopper";
+  telemetry::TelemetrySubscriber sub(scfg);
+  sub.add_listener(acks);
+
+  const dds_entity_t pp = dds_create_participant(lease.id(), nullptr, nullptr);
+  ASSERT_GT(pp, 0);
+  const dds_entity_t topic = dds_create_topic(pp, &pedalwave_msg_dds__OperatorCommand__desc,
+                                              "rt/pedalwave/emergency_stop", nullptr, nullptr);
+  ASSERT_GT(topic, 0);
+  dds_qos_t* q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+  const dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;
+  dds_qset_data_representation(q, 1, &xcdr1);
+  const dds_entity_t writer = dds_create_writer(pp, topic, q, nullptr);
+  dds_delete_qos(q);
+  ASSERT_GT(writer, 0);
+  // Matched by the robot's reader (the subscriber reads the topic too: wait for 2).
+  dds_publication_matched_status_t st{};
+  for (int i = 0; i < 2000 && st.current_count < 2; ++i) {
+    dds_get_publication_matched_status(writer, &st);
+    std::this_thread::sleep_for(5ms);
+  }
+  ASSERT_GE(st.current_count, 2u);
+  ASSERT_TRUE(sub.wait_for_robot(std::chrono::seconds(10)));
+
+  pedalwave_msg_dds__OperatorCommand_ m{};
+  std::strncpy(m.target, "estopper", sizeof m.target - 1);
+  std::strncpy(m.sender, "raw", sizeof m.sender - 1);
+  m.kind = static_cast<std::uint8_t>(runtime::OperatorCommandKind::kSetGait);
+  m.id = 41;
+  m.amplitude = 0.5;
+  m.omega = 3.0;
+  m.eta = 0.7;
+  ASSERT_EQ(dds_write(writer, &m), DDS_RETCODE_OK);
+  m.kind = static_cast<std::uint8_t>(runtime::OperatorCommandKind::kEmergencyStop);
+  m.id = 42;
+  ASSERT_EQ(dds_write(writer, &m), DDS_RETCODE_OK);
+
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (acks.acks.size() < 2 && std::chrono::steady_clock::now() < deadline) sub.poll(50ms);
+  ASSERT_EQ(acks.acks.size(), 2u);
+  EXPECT_EQ(acks.acks[0].id, 41u);
+  EXPECT_EQ(acks.acks[0].status, telemetry::AckStatus::kRejected);
+  EXPECT_EQ(acks.acks[0].reason, "only emergency_stop is honoured on /pedalwave/emergency_stop");
+  EXPECT_EQ(acks.acks[1].id, 42u);
+  EXPECT_EQ(acks.acks[1].status, telemetry::AckStatus::kQueued) << acks.acks[1].reason;
+  std::lock_guard lock(handled_mutex);
+  ASSERT_EQ(handled.size(), 1u) << "only the e-stop reached the runtime";
+  EXPECT_EQ(handled[0].kind, runtime::OperatorCommandKind::kEmergencyStop);
+  EXPECT_EQ(handled[0].id, 42u);
+  dds_delete(pp);
 }
 
 TEST(Wire, JointStatesArePlainXcdr1AsRmwCycloneddsWritesThem) {

@@ -10,6 +10,9 @@
 //              (CLOCK_THREAD_CPUTIME_ID; Cyclone serializes and sends in the writing thread),
 //              and of the whole publisher process (getrusage, includes Cyclone's own threads)
 //   on_cycle   per-call wall time of DdsTelemetry::on_cycle (4 writes): median, p99, max
+//   latency    joint_state write (source timestamp) to the subscriber's take, median and p99
+// --security KEYSTORE: both with DDS Security (enclaves /pedalwave/pedalwave, robot role, and
+// /pedalwave/bench_monitor, monitor role: tools/scripts/keystore.sh), to compare with it off.
 // The parent process never touches DDS (it only forks, so the children start clean).
 //
 //   pedalwave_telemetry_bench [--seconds 5] [--rate 1000] [--joints 6 24] [--domain 231]
@@ -75,8 +78,13 @@ std::string read_line(int fd) {
 
 struct Counts : telemetry::TelemetryListener {
   unsigned long long joint = 0, ctrl = 0, obs = 0, timing = 0;
-  void on_joint_state(const telemetry::JointStateMsg&, const telemetry::MessageInfo&) override {
+  std::vector<double> latency_us;   // joint_state: source timestamp -> take (both CLOCK_REALTIME)
+  void on_joint_state(const telemetry::JointStateMsg&, const telemetry::MessageInfo& mi) override {
     ++joint;
+    timespec ts{};
+    clock_gettime(CLOCK_REALTIME, &ts);
+    const std::int64_t now = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+    latency_us.push_back(1e-3 * static_cast<double>(now - mi.source_time_ns));
   }
   void on_controller_state(const telemetry::ControllerStateMsg&,
                            const telemetry::MessageInfo&) override {
@@ -94,6 +102,12 @@ struct Counts : telemetry::TelemetryListener {
 // --standard-topics: also sensor_msgs/JointState + /tf on every cycle (and /diagnostics at 1 Hz),
 // with a subscriber to them; off: the four pedalwave state topics only (the table in README.md).
 bool g_standard = false;
+// --security: the keystore (empty: off).
+std::string g_keystore;
+telemetry::SecurityConfig security_for(const char* enclave) {
+  if (g_keystore.empty()) return {};
+  return {true, g_keystore, enclave};
+}
 
 [[noreturn]] void subscriber_child(std::uint32_t domain, int fd) {
   int rc = 0;
@@ -105,14 +119,23 @@ bool g_standard = false;
     cfg.domain_id = domain;
     cfg.state_history_depth = 2000;
     cfg.standard_topics = g_standard;
+    cfg.security = security_for("/pedalwave/bench_monitor");
     telemetry::TelemetrySubscriber sub(cfg);
     Counts c;
+    c.latency_us.reserve(1'000'000);
     sub.add_listener(c);
     write_line(fd, "ready");
     while (g_stop == 0) sub.poll(std::chrono::milliseconds(20));
     sub.poll(std::chrono::milliseconds(0));
+    std::sort(c.latency_us.begin(), c.latency_us.end());
+    const auto pct = [&](double p) {
+      return c.latency_us.empty()
+                 ? 0.0
+                 : c.latency_us[static_cast<std::size_t>(p * (c.latency_us.size() - 1))];
+    };
     write_line(fd, std::to_string(c.joint) + " " + std::to_string(c.ctrl) + " " +
-                       std::to_string(c.obs) + " " + std::to_string(c.timing));
+                       std::to_string(c.obs) + " " + std::to_string(c.timing) + " " +
+                       std::to_string(pct(0.5)) + " " + std::to_string(pct(0.99)));
   }
   ::_exit(rc);
 }
@@ -123,6 +146,7 @@ bool g_standard = false;
     telemetry::TelemetryConfig cfg;
     cfg.domain_id = domain;
     cfg.standard_topics = g_standard;
+    cfg.security = security_for("/pedalwave/pedalwave");
     telemetry::DdsTelemetry tel(cfg);
     const telemetry::SyntheticRobot robot(joints, rate);
     tel.on_description(robot.description());
@@ -187,6 +211,9 @@ int main(int argc, char** argv) {
   app.add_flag("--standard-topics", g_standard,
                "also publish (and subscribe to) the standard ROS 2 topics: joint_states, tf, "
                "diagnostics");
+  app.add_option("--security", g_keystore,
+                 "DDS Security with this keystore (enclaves /pedalwave/pedalwave as robot, "
+                 "/pedalwave/bench_monitor as monitor; domain <= 230)");
   app.add_option("--domain", domain, "DDS domain id (keep clear of other users)")
       ->check(CLI::Range(0, 232))
       ->capture_default_str();
@@ -194,10 +221,13 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::warn);
 
   std::printf("DDS telemetry, loopback, two processes, %g Hz for %g s per N, 4 state topics "
-              "undecimated (best-effort)\n",
-              rate, seconds);
-  std::printf("%5s %8s %10s %8s %12s %14s %16s %28s\n", "N-1", "sent", "recv/s", "loss",
-              "write errs", "pub thread CPU", "pub process CPU", "on_cycle p50/p99/max [us]");
+              "undecimated (best-effort), %s\n",
+              rate, seconds,
+              g_keystore.empty() ? "DDS Security off"
+                                 : ("DDS Security ON (keystore " + g_keystore + ")").c_str());
+  std::printf("%5s %8s %10s %8s %12s %14s %16s %28s %20s\n", "N-1", "sent", "recv/s", "loss",
+              "write errs", "pub thread CPU", "pub process CPU", "on_cycle p50/p99/max [us]",
+              "latency p50/p99 [us]");
   int failures = 0;
   for (int joints : joint_counts) {
     int sub_pipe[2], pub_pipe[2];
@@ -220,10 +250,11 @@ int main(int argc, char** argv) {
     for (int fd : {sub_pipe[0], sub_pipe[1], pub_pipe[0], pub_pipe[1]}) ::close(fd);
 
     unsigned long long sent = 0, errors = 0, j = 0, c = 0, o = 0, t = 0;
-    double wall = 0, cpu = 0, proc = 0, p50 = 0, p99 = 0, pmax = 0;
+    double wall = 0, cpu = 0, proc = 0, p50 = 0, p99 = 0, pmax = 0, l50 = 0, l99 = 0;
     if (std::sscanf(pr.c_str(), "%llu %lf %lf %lf %lf %lf %lf %llu", &sent, &wall, &cpu, &proc,
                     &p50, &p99, &pmax, &errors) != 8 ||
-        std::sscanf(sr.c_str(), "%llu %llu %llu %llu", &j, &c, &o, &t) != 4 || wall <= 0.0) {
+        std::sscanf(sr.c_str(), "%llu %llu %llu %llu %lf %lf", &j, &c, &o, &t, &l50, &l99) != 6 ||
+        wall <= 0.0) {
       std::fprintf(stderr, "N-1 = %d: no result (publisher \"%s\", subscriber \"%s\")\n", joints,
                    pr.c_str(), sr.c_str());
       ++failures;
@@ -231,12 +262,13 @@ int main(int argc, char** argv) {
     }
     const double recv = static_cast<double>(j + c + o + t);
     const double loss = 1.0 - recv / (4.0 * static_cast<double>(sent));
-    char cpu_col[32], proc_col[32], calls[48];
+    char cpu_col[32], proc_col[32], calls[48], lat[40];
+    std::snprintf(lat, sizeof lat, "%.0f / %.0f", l50, l99);
     std::snprintf(cpu_col, sizeof cpu_col, "%.1f ms/s", 1e3 * cpu / wall);
     std::snprintf(proc_col, sizeof proc_col, "%.1f ms/s", 1e3 * proc / wall);
     std::snprintf(calls, sizeof calls, "%.1f / %.1f / %.1f", p50, p99, pmax);
-    std::printf("%5d %8llu %10.0f %7.3f%% %12llu %14s %16s %28s\n", joints, sent, recv / wall,
-                100.0 * loss, errors, cpu_col, proc_col, calls);
+    std::printf("%5d %8llu %10.0f %7.3f%% %12llu %14s %16s %28s %20s\n", joints, sent,
+                recv / wall, 100.0 * loss, errors, cpu_col, proc_col, calls, lat);
     std::printf("      per topic received: joint_state %llu, controller_state %llu, "
                 "observer_state %llu, loop_timing %llu\n",
                 j, c, o, t);

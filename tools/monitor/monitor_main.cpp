@@ -143,6 +143,13 @@ int main(int argc, char** argv) {
   app.add_option("--amplitude", amplitude, "gait amplitude A_p [rad] (--command gait)");
   app.add_option("--omega", omega, "gait frequency omega [rad/s] (--command gait)");
   app.add_option("--eta", eta, "nominal eta [rad] (--command gait)");
+  // DDS Security (README "Securing a robot"): these, else ROS_SECURITY_ENABLE=true with
+  // ROS_SECURITY_KEYSTORE / ROS_SECURITY_ENCLAVE_OVERRIDE / ROS_SECURITY_STRATEGY.
+  std::optional<std::string> sec_keystore, sec_enclave;
+  app.add_option("--security-keystore", sec_keystore,
+                 "SROS2 keystore folder: turns DDS Security on (tools/scripts/keystore.sh)");
+  app.add_option("--security-enclave", sec_enclave,
+                 "this identity's enclave in it, e.g. /pedalwave/alice");
   if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_monitor")) return *rc;
 
   spdlog::set_level(spdlog::level::warn);  // the screen is ours
@@ -164,6 +171,16 @@ int main(int argc, char** argv) {
   }
   cfg.domain_id = choice.domain.domain_id;
   cfg.interface = choice.domain.interface;
+  try {
+    telemetry::SecurityRequest sreq;
+    if (sec_keystore) sreq.cli_keystore = &*sec_keystore;
+    if (sec_enclave) sreq.cli_enclave = &*sec_enclave;
+    const auto sc = telemetry::resolve_security(sreq, [](const char* v) { return std::getenv(v); });
+    if (!sc.warning.empty()) std::fprintf(stderr, "pedalwave_monitor: WARNING: %s\n", sc.warning.c_str());
+    cfg.security = sc.security;
+  } catch (...) {
+    return pedalwave::toolkit::cli::exit_for_current_exception("pedalwave_monitor");
+  }
 
   const bool tty = ::isatty(STDOUT_FILENO) == 1;
   const bool command_mode = !command.empty();
@@ -216,15 +233,21 @@ int main(int argc, char** argv) {
     acks.id = p.cmd.id;
   }
 
+  if (pending && !sub->command_refusal(pending->cmd.kind).empty()) {
+    std::fprintf(stderr, "pedalwave_monitor: --command %s not sent: %s\n", command.c_str(),
+                 sub->command_refusal(pending->cmd.kind).c_str());
+    return 5;
+  }
   if (!live_view && !once) {
     std::fprintf(stderr,
                  "pedalwave_monitor: robot \"%s\" (namespace %s), domain %u (%s), discovery %s "
-                 "(%s)%s\n",
+                 "(%s), %s%s\n",
                  cfg.robot.c_str(), cfg.effective_namespace().c_str(), cfg.domain_id,
                  choice.domain_source.c_str(),
                  cfg.interface.empty() ? "Cyclone's choice of interface"
                                        : ("on " + cfg.interface).c_str(),
                  choice.discovery_source.c_str(),
+                 telemetry::describe_security(cfg.security).c_str(),
                  record.empty() ? "" : (", recording to " + record).c_str());
   }
   if (live_view) std::fputs("\x1b[?25l\x1b[2J", stdout);  // hide cursor, clear

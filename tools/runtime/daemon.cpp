@@ -518,16 +518,48 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
     tc.command_bounds.omega_max = cfg.telemetry.omega_max;
     tc.command_bounds.eta_min = cfg.telemetry.eta_min;
     tc.command_bounds.eta_max = cfg.telemetry.eta_max;
+    // DDS Security: the file's security: section, then the ROS 2 environment (README "Securing
+    // a robot"). A bad keystore is refused here, naming the file and what is wrong.
+    telemetry::SecurityRequest sreq;
+    sreq.config_present = cfg.security.present;
+    sreq.config_enable = cfg.security.enable;
+    sreq.config_keystore = cfg.security.keystore;
+    sreq.config_enclave = cfg.security.enclave;
+    sreq.config_strategy = cfg.security.strategy;
+    sreq.default_enclave = "/pedalwave/" + telemetry::ros_namespace_for(cfg.name).substr(1);
+    telemetry::SecurityChoice schoice;
+    try {
+      schoice = telemetry::resolve_security(sreq, [](const char* v) { return std::getenv(v); });
+    } catch (const std::invalid_argument& e) {
+      throw BadInput(e.what());
+    }
+    if (!schoice.warning.empty()) out << "WARNING: " << schoice.warning << "\n";
+    tc.security = schoice.security;
     runtime::Runtime* rtp = rt.get();
-    dds = std::make_unique<telemetry::DdsTelemetry>(
-        tc, [rtp](const runtime::OperatorCommand& c) { return rtp->post(c); });
+    try {
+      dds = std::make_unique<telemetry::DdsTelemetry>(
+          tc, [rtp](const runtime::OperatorCommand& c) { return rtp->post(c); });
+    } catch (const std::invalid_argument& e) {
+      throw BadInput(e.what());
+    } catch (const std::runtime_error& e) {
+      if (tc.security.enabled) throw BadInput(e.what());
+      throw;
+    }
     sinks.push_back(dds.get());
     res.telemetry_active = true;
     telemetry_line = "DDS domain " + std::to_string(tc.domain_id) + " (" + choice.domain_source +
                      "), namespace " + tc.effective_namespace() + ", discovery " +
                      (tc.interface.empty() ? std::string("Cyclone's choice of interface")
                                            : "on " + tc.interface) +
-                     " (" + choice.discovery_source + ")";
+                     " (" + choice.discovery_source + "), " +
+                     telemetry::describe_security(tc.security) +
+                     (tc.security.enabled ? " (" + schoice.source + ")" : "");
+    if (!cfg.telemetry.record.empty() && tc.security.enabled)
+      throw BadInput((cfg.source.empty() ? cfg.name : cfg.source) + ": telemetry.record = \"" +
+                     cfg.telemetry.record + "\": the daemon's own recorder does not run with DDS "
+                     "Security yet (its subscriber would need the robot's identity to read its own "
+                     "topics); record with a monitor identity instead: pedalwave_monitor "
+                     "--security-keystore … --record run.mcap");
     if (!cfg.telemetry.record.empty()) {
       // Every topic as published, through a subscriber of the daemon's own on its own thread.
       telemetry::SubscriberConfig sc;

@@ -14,6 +14,9 @@ pkgs=(cmake ninja-build g++ clang libeigen3-dev libspdlog-dev libyaml-cpp-dev li
 pkgs+=(python3-rosidl rosidl-tools python3-empy python3-lark iproute2)
 # The Foxglove WebSocket server of pedalwave_monitor --foxglove (WebSocket, its JSON messages).
 pkgs+=(libwebsockets-dev nlohmann-json3-dev)
+# DDS Security: the keystore checks (libssl-dev) and tools/scripts/keystore.sh (openssl); the
+# Cyclone security plugins come with libddsc0debian.
+pkgs+=(libssl-dev openssl)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

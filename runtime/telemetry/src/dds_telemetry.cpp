@@ -63,8 +63,8 @@ struct DdsTelemetry::Impl {
   dds_entity_t w_joint = 0, w_ctrl = 0, w_obs = 0, w_timing = 0;
   dds_entity_t w_mode = 0, w_fault = 0, w_desc = 0, w_ack = 0;
   dds_entity_t w_js = 0, w_diag = 0, w_urdf = 0, w_tf = 0;
-  dds_entity_t r_cmd = 0;
-  dds_entity_t waitset = 0, cmd_cond = 0, stop_guard = 0;
+  dds_entity_t r_cmd = 0, r_estop = 0;
+  dds_entity_t waitset = 0, cmd_cond = 0, estop_cond = 0, stop_guard = 0;
   std::thread cmd_thread;
   std::string ns, robot, prefix;        // ROS namespace, robot name, frame prefix
   TopicNames topics{""};
@@ -167,7 +167,9 @@ struct DdsTelemetry::Impl {
     return h;
   }
 
-  void handle_command(const pedalwave_msg_dds__OperatorCommand_& m) {
+  // `estop_topic`: it came on rt/pedalwave/emergency_stop, where only an e-stop is honoured
+  // (DDS Security may grant that topic to identities that may not command anything else).
+  void handle_command(const pedalwave_msg_dds__OperatorCommand_& m, bool estop_topic) {
     const std::string target(m.target, strnlen(m.target, sizeof(m.target)));
     if (target != robot && target != "*") {
       ignored.add();
@@ -177,6 +179,9 @@ struct DdsTelemetry::Impl {
     }
     const runtime::OperatorCommand c = to_command(m);
     CommandDecision d = validate_command(c, cfg);
+    if (estop_topic && d.accepted && c.kind != runtime::OperatorCommandKind::kEmergencyStop) {
+      d = {false, "only emergency_stop is honoured on /pedalwave/emergency_stop"};
+    }
     if (d.accepted && !handler) {
       d = {false, "no command handler installed (telemetry-only process)"};
     } else if (d.accepted) {
@@ -390,7 +395,7 @@ struct DdsTelemetry::Impl {
 
   void command_loop() {
     constexpr std::uint32_t kBatch = 16;
-    std::array<dds_attach_t, 2> triggered{};
+    std::array<dds_attach_t, 3> triggered{};
     for (;;) {
       const dds_duration_t timeout = expire_outcomes();
       const dds_return_t n =
@@ -402,19 +407,23 @@ struct DdsTelemetry::Impl {
         spdlog::error("telemetry: command waitset failed: {}", dds_strretcode(n));
         return;
       }
-      // Take everything that arrived (loaned samples, returned after handling).
-      for (;;) {
-        std::array<void*, kBatch> buf{};
-        std::array<dds_sample_info_t, kBatch> info{};
-        const dds_return_t got = dds_take(cmd_cond, buf.data(), info.data(), kBatch, kBatch);
-        if (got <= 0) break;
-        for (dds_return_t i = 0; i < got; ++i) {
-          if (info[static_cast<std::size_t>(i)].valid_data) {
-            handle_command(*static_cast<const pedalwave_msg_dds__OperatorCommand_*>(
-                buf[static_cast<std::size_t>(i)]));
+      // Take everything that arrived on both command topics (loaned samples, returned after
+      // handling). E-stops first.
+      for (const dds_entity_t cond : {estop_cond, cmd_cond}) {
+        for (;;) {
+          std::array<void*, kBatch> buf{};
+          std::array<dds_sample_info_t, kBatch> info{};
+          const dds_return_t got = dds_take(cond, buf.data(), info.data(), kBatch, kBatch);
+          if (got <= 0) break;
+          for (dds_return_t i = 0; i < got; ++i) {
+            if (info[static_cast<std::size_t>(i)].valid_data) {
+              handle_command(*static_cast<const pedalwave_msg_dds__OperatorCommand_*>(
+                                 buf[static_cast<std::size_t>(i)]),
+                             cond == estop_cond);
+            }
           }
+          dds_return_loan(cond, buf.data(), got);
         }
-        dds_return_loan(cmd_cond, buf.data(), got);
       }
     }
   }
@@ -432,9 +441,7 @@ DdsTelemetry::DdsTelemetry(const TelemetryConfig& config, CommandHandler on_comm
   m.topics = TopicNames(m.ns);
   m.header = m.header_now();
   m.domain = acquire_domain(config.domain());
-  m.participant = Entity(check(
-      dds_create_participant(static_cast<dds_domainid_t>(config.domain_id), nullptr, nullptr),
-      "dds_create_participant"));
+  m.participant = Entity(m.domain->create_participant());
   const TopicNames& t = m.topics;
 
   m.w_joint = m.make_writer(&pedalwave_msg_dds__JointState__desc, t.joint_state.c_str(),
@@ -469,20 +476,28 @@ DdsTelemetry::DdsTelemetry(const TelemetryConfig& config, CommandHandler on_comm
   dds_qos_t* q = make_qos(QosClass::kCommand);
   m.r_cmd = check(dds_create_reader(m.participant.get(), cmd_topic, q, nullptr),
                   "dds_create_reader(command)");
+  const dds_entity_t estop_topic =
+      m.make_topic(&pedalwave_msg_dds__OperatorCommand__desc, t.emergency_stop.c_str());
+  m.r_estop = check(dds_create_reader(m.participant.get(), estop_topic, q, nullptr),
+                    "dds_create_reader(emergency_stop)");
   dds_delete_qos(q);
   m.cmd_cond = check(dds_create_readcondition(m.r_cmd, DDS_ANY_STATE), "dds_create_readcondition");
+  m.estop_cond =
+      check(dds_create_readcondition(m.r_estop, DDS_ANY_STATE), "dds_create_readcondition");
   m.stop_guard =
       check(dds_create_guardcondition(m.participant.get()), "dds_create_guardcondition");
   m.waitset = check(dds_create_waitset(m.participant.get()), "dds_create_waitset");
   check(dds_waitset_attach(m.waitset, m.cmd_cond, 0), "dds_waitset_attach");
   check(dds_waitset_attach(m.waitset, m.stop_guard, 1), "dds_waitset_attach");
+  check(dds_waitset_attach(m.waitset, m.estop_cond, 2), "dds_waitset_attach");
   m.cmd_thread = std::thread([this] { impl_->command_loop(); });
 
-  spdlog::info("telemetry: robot \"{}\" namespace \"{}\", DDS domain {} on {}, commands {}",
+  spdlog::info("telemetry: robot \"{}\" namespace \"{}\", DDS domain {} on {}, commands {}, {}",
                m.robot, m.ns.empty() ? "/" : m.ns, config.domain_id,
                config.interface.empty() ? std::string("Cyclone's choice of interface")
                                         : "\"" + config.interface + "\"",
-               config.enable_commands ? "enabled" : "disabled (e-stop only)");
+               config.enable_commands ? "enabled" : "disabled (e-stop only)",
+               describe_security(config.security));
 }
 
 DdsTelemetry::~DdsTelemetry() {

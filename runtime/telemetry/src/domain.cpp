@@ -39,6 +39,12 @@ std::shared_ptr<Domain> acquire_domain(const DomainConfig& d) {
   const std::string xml = cyclone_config_xml(d, std::getenv("CYCLONEDDS_URI"));
   std::unique_lock lock(g_mutex);
   if (auto existing = g_domains[d.domain_id].lock()) {
+    if (existing->security_ != d.security) {
+      throw std::invalid_argument(
+          "telemetry: domain " + std::to_string(d.domain_id) +
+          " already open in this process with another DDS Security identity; expected one "
+          "keystore and enclave per process");
+    }
     if (existing->xml_ != xml) {
       throw std::invalid_argument(
           "telemetry: domain " + std::to_string(d.domain_id) +
@@ -47,9 +53,12 @@ std::shared_ptr<Domain> acquire_domain(const DomainConfig& d) {
     }
     return existing;
   }
+  // A bad keystore is refused here, naming the file, before Cyclone (whose refusal names none).
+  check_keystore(d.security, d.domain_id);
   std::shared_ptr<Domain> dom(new Domain());
   dom->id_ = d.domain_id;
   dom->xml_ = xml;
+  dom->security_ = d.security;
   dds_entity_t h = dds_create_domain(static_cast<dds_domainid_t>(d.domain_id), xml.c_str());
   // The previous instance of this id may be between its last reference and its dds_delete
   // (destructor waiting for the lock we hold): let it finish, then retry.
@@ -58,7 +67,7 @@ std::shared_ptr<Domain> acquire_domain(const DomainConfig& d) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
     lock.lock();
     if (auto existing = g_domains[d.domain_id].lock()) {
-      if (existing->xml_ == xml) return existing;
+      if (existing->xml_ == xml && existing->security_ == d.security) return existing;
     }
     h = dds_create_domain(static_cast<dds_domainid_t>(d.domain_id), xml.c_str());
   }
@@ -75,6 +84,23 @@ std::shared_ptr<Domain> acquire_domain(const DomainConfig& d) {
   return dom;
 }
 
+dds_entity_t Domain::create_participant() const {
+  dds_qos_t* q = dds_create_qos();
+  for (const auto& [name, value] : security_properties(security_)) {
+    dds_qset_prop(q, name.c_str(), value.c_str());
+  }
+  const dds_entity_t p = dds_create_participant(static_cast<dds_domainid_t>(id_), q, nullptr);
+  dds_delete_qos(q);
+  if (p < 0 && security_.enabled) {
+    throw std::runtime_error(
+        std::string("telemetry: DDS Security refused the participant of enclave ") +
+        security_.enclave + " (" + security_.enclave_dir() + "): " + dds_strretcode(p) +
+        " (the Cyclone security plugins could not load, or rejected the certificate, governance "
+        "or permissions; CYCLONEDDS_URI with <Tracing><Verbosity>finest</Verbosity> shows why)");
+  }
+  return check(p, "dds_create_participant");
+}
+
 TopicNames::TopicNames(const std::string& ns) {
   const std::string p = "rt" + ns + "/pedalwave/";
   joint_state = p + "joint_state";
@@ -86,6 +112,7 @@ TopicNames::TopicNames(const std::string& ns) {
   description = p + "robot_description";
   command = "rt/pedalwave/command";
   command_ack = "rt/pedalwave/command_ack";
+  emergency_stop = "rt/pedalwave/emergency_stop";
   joint_states = "rt" + ns + "/joint_states";
   robot_description_urdf = "rt" + ns + "/robot_description";
   diagnostics = "rt/diagnostics";

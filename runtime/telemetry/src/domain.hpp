@@ -48,6 +48,10 @@ class Domain {
   Domain(const Domain&) = delete;
   Domain& operator=(const Domain&) = delete;
   std::uint32_t id() const noexcept { return id_; }
+  // A participant on this domain with the process's DDS Security identity (if any): its QoS
+  // carries the dds.sec.* properties. Throws std::runtime_error, naming the enclave when
+  // security is on, if Cyclone refuses it.
+  dds_entity_t create_participant() const;
 
  private:
   friend std::shared_ptr<Domain> acquire_domain(const DomainConfig& d);
@@ -55,6 +59,7 @@ class Domain {
   std::uint32_t id_ = 0;
   dds_entity_t handle_ = 0;
   std::string xml_;
+  SecurityConfig security_;
 };
 std::shared_ptr<Domain> acquire_domain(const DomainConfig& d);
 
@@ -69,6 +74,9 @@ struct TopicNames {
   std::string joint_state, controller_state, observer_state, loop_timing;   // rt<ns>/pedalwave/...
   std::string mode_event, fault_event, description;
   std::string command, command_ack;                  // rt/pedalwave/command, rt/pedalwave/command_ack
+  // rt/pedalwave/emergency_stop: OperatorCommand with kind e-stop only. A separate topic so DDS
+  // Security permissions can grant e-stop to more identities than the command topic.
+  std::string emergency_stop;
   std::string joint_states, robot_description_urdf;  // rt<ns>/joint_states, rt<ns>/robot_description
   std::string diagnostics, tf;                        // rt/diagnostics, rt/tf
 };

@@ -72,7 +72,8 @@ struct TelemetrySubscriber::Impl {
   std::shared_ptr<Domain> domain;
   Entity participant;
   dds_entity_t waitset = 0;
-  dds_entity_t w_cmd = 0;
+  dds_entity_t w_cmd = 0, w_estop = 0;   // 0: this identity may not publish there (security)
+  std::string cmd_refusal, estop_refusal;
   std::vector<ReaderSlot> readers;
   std::size_t joint_reader_index = 0;   // readers[] slot of joint_state
   std::size_t ack_reader_index = 0;     // readers[] slot of command_ack
@@ -115,9 +116,7 @@ TelemetrySubscriber::TelemetrySubscriber(const SubscriberConfig& config)
   Impl& m = *impl_;
   m.cfg = config;
   m.domain = acquire_domain(config.domain());
-  m.participant = Entity(check(
-      dds_create_participant(static_cast<dds_domainid_t>(config.domain_id), nullptr, nullptr),
-      "dds_create_participant"));
+  m.participant = Entity(m.domain->create_participant());
   m.waitset = check(dds_create_waitset(m.participant.get()), "dds_create_waitset");
 
   using L = TelemetryListener;
@@ -149,6 +148,9 @@ TelemetrySubscriber::TelemetrySubscriber(const SubscriberConfig& config)
   m.add_reader<pedalwave_msg_dds__OperatorCommand_>(&pedalwave_msg_dds__OperatorCommand__desc,
                                                     t.command.c_str(), QosClass::kCommand,
                                                     &L::on_command);
+  m.add_reader<pedalwave_msg_dds__OperatorCommand_>(&pedalwave_msg_dds__OperatorCommand__desc,
+                                                    t.emergency_stop.c_str(), QosClass::kCommand,
+                                                    &L::on_command);
   m.ack_reader_index = m.readers.size();
   m.add_reader<pedalwave_msg_dds__CommandAck_>(&pedalwave_msg_dds__CommandAck__desc,
                                                t.command_ack.c_str(), QosClass::kCommand,
@@ -167,15 +169,26 @@ TelemetrySubscriber::TelemetrySubscriber(const SubscriberConfig& config)
                                                t.tf.c_str(), QosClass::kRos, &L::on_tf);
   }
 
-  // Command writer (same topic entity as the command reader: look it up by name).
-  const dds_entity_t cmd_topic =
-      check(dds_create_topic(m.participant.get(), &pedalwave_msg_dds__OperatorCommand__desc,
-                             t.command.c_str(), nullptr, nullptr),
-            "dds_create_topic(command)");
-  dds_qos_t* q = make_qos(QosClass::kCommand);
-  m.w_cmd = dds_create_writer(m.participant.get(), cmd_topic, q, nullptr);
-  dds_delete_qos(q);
-  check(m.w_cmd, "dds_create_writer(command)");
+  // Command writers (same topic entities as the command readers: look them up by name). With
+  // DDS Security the permissions may refuse either (a monitor-only or e-stop-only identity): the
+  // subscriber still works, send_command() then refuses and says why (command_refusal()).
+  const auto make_cmd_writer = [&](const std::string& topic, std::string& refusal) {
+    const dds_entity_t tp =
+        check(dds_create_topic(m.participant.get(), &pedalwave_msg_dds__OperatorCommand__desc,
+                               topic.c_str(), nullptr, nullptr),
+              "dds_create_topic(command)");
+    dds_qos_t* q = make_qos(QosClass::kCommand);
+    const dds_entity_t w = dds_create_writer(m.participant.get(), tp, q, nullptr);
+    dds_delete_qos(q);
+    if (w == DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) {
+      refusal = "the permissions of enclave " + config.security.enclave +
+                " do not allow publishing on " + topic.substr(2);
+      return dds_entity_t{0};
+    }
+    return check(w, "dds_create_writer(command)");
+  };
+  m.w_cmd = make_cmd_writer(t.command, m.cmd_refusal);
+  m.w_estop = make_cmd_writer(t.emergency_stop, m.estop_refusal);
 }
 
 TelemetrySubscriber::~TelemetrySubscriber() { impl_->participant.reset(); }
@@ -246,7 +259,11 @@ bool TelemetrySubscriber::send_command(const runtime::OperatorCommand& c,
                                        const std::string& target) {
   pedalwave_msg_dds__OperatorCommand_ msg{};
   fill(c, target.c_str(), impl_->cfg.sender.c_str(), msg);
-  return dds_write(impl_->w_cmd, &msg) == DDS_RETCODE_OK;
+  // An e-stop goes on its own topic (the robot reads both; permissions may grant only that one).
+  const bool estop = c.kind == runtime::OperatorCommandKind::kEmergencyStop;
+  const dds_entity_t w = estop ? impl_->w_estop : impl_->w_cmd;
+  if (w == 0) return false;
+  return dds_write(w, &msg) == DDS_RETCODE_OK;
 }
 
 bool TelemetrySubscriber::wait_for_robot(std::chrono::nanoseconds timeout) {
@@ -259,7 +276,8 @@ bool TelemetrySubscriber::wait_for_robot(std::chrono::nanoseconds timeout) {
     // A robot's ack writer matched us, and our command writer matched a reader besides our own
     // participant's command reader.
     if (dds_get_subscription_matched_status(ack_reader, &acks) == DDS_RETCODE_OK &&
-        dds_get_publication_matched_status(impl_->w_cmd, &cmds) == DDS_RETCODE_OK &&
+        dds_get_publication_matched_status(impl_->w_cmd ? impl_->w_cmd : impl_->w_estop,
+                                           &cmds) == DDS_RETCODE_OK &&
         acks.current_count > 0 && cmds.current_count > 1) {
       return true;
     }
@@ -273,6 +291,11 @@ int TelemetrySubscriber::joint_state_writers() const {
   if (dds_get_subscription_matched_status(
           impl_->readers[impl_->joint_reader_index].reader, &st) < 0) return 0;
   return static_cast<int>(st.current_count);
+}
+
+std::string TelemetrySubscriber::command_refusal(runtime::OperatorCommandKind kind) const {
+  return kind == runtime::OperatorCommandKind::kEmergencyStop ? impl_->estop_refusal
+                                                              : impl_->cmd_refusal;
 }
 
 const SubscriberConfig& TelemetrySubscriber::config() const { return impl_->cfg; }

@@ -55,6 +55,17 @@ struct TelemetrySection {
   std::string record;
 };
 
+// DDS Security for the telemetry and command topics (README "Securing a robot"): the file's
+// `security:` section. Absent: the ROS 2 environment decides (ROS_SECURITY_ENABLE=true,
+// ROS_SECURITY_KEYSTORE, ROS_SECURITY_ENCLAVE_OVERRIDE, ROS_SECURITY_STRATEGY), else off.
+struct SecuritySection {
+  bool present = false;               // the file has a security: section
+  bool enable = true;                 // enable: false turns security off whatever the environment says
+  std::string keystore;               // SROS2 keystore folder (relative: to the config file); "" = ROS_SECURITY_KEYSTORE
+  std::string enclave;                // enclave path, e.g. /pedalwave/snake1; "" = ROS_SECURITY_ENCLAVE_OVERRIDE, else /pedalwave/<name>
+  std::string strategy;               // "enforce" | "permissive"; "" = ROS_SECURITY_STRATEGY, else enforce
+};
+
 struct DaemonConfig {
   std::string source;                 // the file
   std::string name = "pedalwave";
@@ -70,6 +81,7 @@ struct DaemonConfig {
   // start report: read deadline, stale_timeout, module-silent window.
   std::string timing_note;
   TelemetrySection telemetry;
+  SecuritySection security;
   std::string log_file;               // events log; empty = stderr
 };
 

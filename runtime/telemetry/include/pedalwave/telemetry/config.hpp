@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "pedalwave/telemetry/security.hpp"
+
 namespace pedalwave::telemetry {
 
 // Where the participants live. Shared by the robot side (TelemetryConfig) and the monitor side
@@ -25,6 +27,8 @@ struct DomainConfig {
   //            (multicast SPDP on the first multicast-capable interface), plus `peers`.
   std::string interface = "lo";
   std::vector<std::string> peers;    // extra unicast discovery peers (IPv4 addresses / host names)
+  // DDS Security identity of this process's participants (security.hpp); off by default.
+  SecurityConfig security;
 };
 
 // What to use when several sources give a value: the command line, then the configuration file,
@@ -83,6 +87,7 @@ struct TelemetryConfig {
   std::uint32_t domain_id = 0;       // see DomainConfig
   std::string interface = "lo";      // see DomainConfig
   std::vector<std::string> peers;    // see DomainConfig
+  SecurityConfig security;           // see DomainConfig
   // The robot's name: commands are acted upon only when their target is this name or "*".
   // 1..63 characters.
   std::string robot_name = "pedalwave";
@@ -102,7 +107,7 @@ struct TelemetryConfig {
   bool enable_commands = true;
   CommandBounds command_bounds;
 
-  DomainConfig domain() const { return {domain_id, interface, peers}; }
+  DomainConfig domain() const { return {domain_id, interface, peers, security}; }
   std::string effective_namespace() const;   // ros_namespace, or derived from robot_name
   void validate() const;  // throws std::invalid_argument
 };
@@ -111,6 +116,7 @@ struct SubscriberConfig {
   std::uint32_t domain_id = 0;       // see DomainConfig
   std::string interface = "lo";      // see DomainConfig
   std::vector<std::string> peers;    // see DomainConfig
+  SecurityConfig security;           // see DomainConfig
   // Reader history per high-rate topic (keep-last depth): how many samples may arrive between two
   // polls before the oldest are overwritten. 256 covers 250 ms at 1 kHz.
   int state_history_depth = 256;     // [-], 1..10000
@@ -122,7 +128,7 @@ struct SubscriberConfig {
   // Also subscribe to the standard ROS 2 topics (joint_states, diagnostics, URDF, tf).
   bool standard_topics = false;
 
-  DomainConfig domain() const { return {domain_id, interface, peers}; }
+  DomainConfig domain() const { return {domain_id, interface, peers, security}; }
   std::string effective_namespace() const;
   void validate() const;  // throws std::invalid_argument
 };

@@ -87,6 +87,9 @@ class TelemetrySubscriber {
   // configured robot); `id` is the caller's. Returns false if the write failed.
   bool send_command(const runtime::OperatorCommand& c);
   bool send_command(const runtime::OperatorCommand& c, const std::string& target);
+  // Why send_command() of this kind always returns false ("" when it may be sent): DDS Security
+  // permissions that do not allow this identity to publish the command (or e-stop) topic.
+  std::string command_refusal(runtime::OperatorCommandKind kind) const;
   // Waits until a robot's command reader is matched (commands are volatile: sent before the
   // match, they are lost). Returns false on timeout.
   bool wait_for_robot(std::chrono::nanoseconds timeout);

@@ -304,3 +304,9 @@ std::int16_t goal_current(double tau, double k_t, double current_lsb, std::uint1
 }  // namespace x
 
 }  // namespace pedalwave::drivers::dxl
+
+namespace pedalwave::drivers {
+// What sits on the serial bus: pedalwave modules (PROTOCOL.md §3.2), or per joint a stock
+// X-series servo in current control (ID j + 1, §3.6) and a deflection sensor (ID j + 1 + offset).
+enum class SerialDevices : std::uint8_t { kPedalwave = 0, kXSeries };
+}  // namespace pedalwave::drivers

@@ -1,0 +1,243 @@
+// The serial driver's X-series mode (stock DYNAMIXEL X-series servos in current control + a
+// deflection sensor per joint, PROTOCOL.md §3.6) against the module emulator's X-series bus over
+// a pseudo-terminal: configuration (identify, set current control, refuse a wrong model / mode),
+// the cycle (Bulk Read, host-side law, Sync Write of Goal Current), timing, safe stop.
+#include <gtest/gtest.h>
+#include <fcntl.h>
+#include <stdlib.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+#include <thread>
+
+#include "cycle_harness.hpp"
+#include "pedalwave/drivers/bus_budget.hpp"
+#include "pedalwave/drivers/dynamixel.hpp"
+#include "pedalwave/drivers/module_emulator.hpp"
+#include "pedalwave/drivers/serial_driver.hpp"
+#include "pedalwave/drivers/xseries_driver.hpp"
+#include "test_plant.hpp"
+
+namespace pd = pedalwave::drivers;
+namespace dxl = pedalwave::drivers::dxl;
+using pedalwave::test::FirstOrderPlant;
+
+namespace {
+
+constexpr std::int64_t kMs = 1'000'000;
+
+struct Pty {
+  int master = -1;
+  std::string slave;
+  Pty() {
+    master = ::posix_openpt(O_RDWR | O_NOCTTY);
+    if (master < 0 || ::grantpt(master) != 0 || ::unlockpt(master) != 0)
+      throw std::system_error(errno, std::generic_category(), "posix_openpt");
+    slave = ::ptsname(master);
+  }
+  ~Pty() { ::close(master); }
+};
+
+pd::SerialConfig x_config(int joints) {
+  pd::SerialConfig cfg;
+  cfg.joints = joints;
+  cfg.baud = 4'000'000;
+  cfg.period_s = 2e-3;
+  cfg.devices = pd::SerialDevices::kXSeries;
+  return cfg;
+}
+
+struct XRig {
+  Pty pty;
+  FirstOrderPlant plant;
+  std::unique_ptr<pd::SerialDriver> drv;
+  std::unique_ptr<pd::SerialModuleEmulator> emu;
+  std::atomic<bool> stop{false};
+  std::thread th;
+  explicit XRig(int joints, const pd::SerialConfig& cfg, pd::XSeriesConfig x = {}) {
+    drv = std::make_unique<pd::SerialDriver>(pd::open_serial_port(pty.slave, cfg.baud), cfg);
+    pd::EmulatorConfig ec;
+    ec.joints = joints;
+    ec.serial_devices = pd::SerialDevices::kXSeries;
+    ec.x = x;
+    emu = std::make_unique<pd::SerialModuleEmulator>(pty.master, ec, plant);
+    th = std::thread([this] { emu->run(stop); });
+  }
+  ~XRig() {
+    stop = true;
+    th.join();
+  }
+  pd::XSeriesDriver& x() { return *drv->x_series(); }
+};
+
+std::string configure_error(pd::SerialDriver& d) {
+  try {
+    d.configure_modules(20 * kMs);
+  } catch (const std::runtime_error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(XSeriesDriver, IdentifiesServosAndSensorsAndSetsCurrentControl) {
+  XRig rig(3, x_config(3));
+  ASSERT_NE(rig.drv->x_series(), nullptr);
+  rig.drv->configure_modules();
+  for (int j = 0; j < 3; ++j) {
+    const pd::XSeriesIdentity& id = rig.x().identity(j);
+    EXPECT_EQ(id.model, dxl::x::kModelXM430W350) << j;
+    EXPECT_EQ(id.firmware, 45) << j;             // the emulator's
+    EXPECT_EQ(id.operating_mode, 3) << j;        // as shipped: position control
+    EXPECT_EQ(id.current_limit, 1193) << j;
+    EXPECT_EQ(id.sensor_model, dxl::x::kSensorModelNumber) << j;
+    EXPECT_FALSE(rig.x().torque_on(j)) << j;     // torque stays off until the first command
+    EXPECT_TRUE(rig.emu->bank().torque_off(j)) << j;
+  }
+  // Configured twice: the servos are in current control now (the second finds mode 0).
+  rig.drv->configure_modules();
+  EXPECT_EQ(rig.x().identity(0).operating_mode, 0);
+}
+
+TEST(XSeriesDriver, RefusesAServoOfAnotherModelNamingIt) {
+  pd::XSeriesConfig x;
+  x.model = 1060;  // XL430-W250: another current unit, no current control mode
+  XRig rig(2, x_config(2), x);
+  const std::string e = configure_error(*rig.drv);
+  EXPECT_NE(e.find("servo ID 1 (joint 1)"), std::string::npos) << e;
+  EXPECT_NE(e.find("register 0 (model number) = 1060, expected 1020 (XM430-W350) or 1030"),
+            std::string::npos) << e;
+}
+
+TEST(XSeriesDriver, RefusesAServoOutsideCurrentControlWhenNotAllowedToSetIt) {
+  pd::SerialConfig cfg = x_config(2);
+  cfg.set_operating_mode = false;
+  XRig rig(2, cfg);
+  const std::string e = configure_error(*rig.drv);
+  EXPECT_NE(e.find("servo ID 1 (joint 1): register 11 (operating mode) = 3, expected 0"),
+            std::string::npos) << e;
+}
+
+TEST(XSeriesDriver, RefusesAMissingSensorNamingIt) {
+  pd::SerialConfig cfg = x_config(2);
+  cfg.sensor_id_offset = 150;  // the emulator's sensors answer at 101, 102
+  XRig rig(2, cfg);
+  const std::string e = configure_error(*rig.drv);
+  EXPECT_NE(e.find("deflection sensor ID 151 (joint 1): no answer"), std::string::npos) << e;
+}
+
+TEST(XSeriesDriver, CycleAppliesTheHostLawAsGoalCurrentWithHostTiming) {
+  const int joints = 3, cycles = 300;
+  const double k_t = 1.78, lsb = dxl::x::kCurrentLsbXM430;
+  XRig rig(joints, x_config(joints));
+  rig.drv->configure_modules();
+  pd::Feedback fb{};
+  pd::Command cmd{};
+  cmd.joints = joints;
+  std::int64_t t0 = pedalwave::test::now_ns();
+  int ok = 0, applied_prev = 0, sample_inside = 0;
+  std::uint64_t prev_seq = pd::kNoCommandSeq;
+  std::int64_t prev_write = 0;
+  for (int i = 0; i < cycles; ++i) {
+    const pd::IoStatus s = rig.drv->read(t0, t0 + 1500'000, fb);
+    if (s == pd::IoStatus::kOk) ++ok;
+    ASSERT_EQ(fb.timing, pd::FeedbackTiming::kModule);
+    for (int j = 0; j < joints; ++j) {
+      if (fb.status[j] & pd::kStatusMissing) continue;
+      // Sampled when the Bulk Read arrived: after this cycle's start, before the deadline.
+      if (fb.sample_ns[j] > t0 && fb.sample_ns[j] < t0 + 1500'000) ++sample_inside;
+      // The command in effect is the previous write's, applied after it went out.
+      if (fb.applied_seq[j] == prev_seq &&
+          (prev_seq == pd::kNoCommandSeq || fb.applied_ns[j] > prev_write))
+        ++applied_prev;
+      EXPECT_EQ((fb.status[j] & pd::kStatusTorqueOff) != 0, i == 0) << i;
+    }
+    // Host law: kp toward 0.2 rad, a feed-forward torque; the goal is u / k_t in 2.69 mA.
+    for (int j = 0; j < joints; ++j) {
+      cmd.tau[j] = 0.01 * (j + 1);
+      cmd.beta_ref[j] = 0.2;
+      cmd.beta_dot_ref[j] = 0.0;
+      cmd.kp[j] = 0.1;
+      cmd.kd[j] = 0.0;
+    }
+    cmd.seq = static_cast<std::uint64_t>(i + 1);
+    prev_write = pedalwave::test::now_ns();
+    ASSERT_EQ(rig.drv->write(cmd), pd::IoStatus::kOk);
+    prev_seq = cmd.seq;
+    for (int j = 0; j < joints; ++j) {
+      const double u = cmd.tau[j] + cmd.kp[j] * (0.2 - fb.beta[j]);
+      EXPECT_EQ(rig.x().goal(j), static_cast<std::int16_t>(std::lround(u / (k_t * lsb)))) << i;
+      EXPECT_TRUE(rig.x().torque_on(j));
+    }
+    t0 += 2 * kMs;
+    if (t0 < pedalwave::test::now_ns()) t0 = pedalwave::test::now_ns();
+    pedalwave::test::sleep_until(t0);
+  }
+  const pd::DriverCounters c = rig.drv->counters();
+  EXPECT_GE(ok, cycles * 9 / 10);  // a loaded machine may miss a few deadlines
+  EXPECT_GE(sample_inside, ok * joints);
+  EXPECT_GE(applied_prev, ok * joints);
+  EXPECT_EQ(c.checksum + c.malformed + c.tx_dropped, 0u);
+  EXPECT_GE(c.frames_rx, static_cast<std::uint64_t>(2 * joints * ok));
+  // The plant was driven by the goal current's torque, and the feedback is the plant's, in the
+  // servo's units: β to 4096 per revolution, the deflection to the sensor's 2e-5 rad.
+  pedalwave::test::wait_for([&] { return rig.plant.applies() >= static_cast<std::uint64_t>(cycles); },
+                            2000 * kMs);
+  rig.stop = true;
+  rig.th.join();
+  rig.th = std::thread([] {});
+  for (int j = 0; j < joints; ++j) {
+    EXPECT_NEAR(rig.plant.last_command().tau[j], rig.x().goal(j) * lsb * k_t, 1e-12) << j;
+    // (the plant has moved on since the last Bulk Read: ≈ 0.3 rad/s × a few ms)
+    EXPECT_NEAR(fb.beta[j], rig.plant.last_measured().beta[j], 0.01) << j;
+    const double counts = fb.beta[j] / dxl::x::kPositionLsb;
+    EXPECT_NEAR(counts, std::round(counts), 1e-9) << j;  // the servo's 4096 per revolution
+    EXPECT_GT(fb.beta[j], 0.05) << j;  // moved toward 0.2 under the host's law
+  }
+}
+
+TEST(XSeriesDriver, SafeStopTurnsTheTorqueOff) {
+  const int joints = 2;
+  XRig rig(joints, x_config(joints));
+  rig.drv->configure_modules();
+  pd::Feedback fb{};
+  pd::Command cmd{};
+  cmd.joints = joints;
+  cmd.tau[0] = cmd.tau[1] = 0.05;
+  const std::int64_t t0 = pedalwave::test::now_ns();
+  rig.drv->read(t0, t0 + 1500'000, fb);
+  rig.drv->write(cmd);
+  ASSERT_TRUE(pedalwave::test::wait_for([&] { return !rig.emu->bank().torque_off(1); }, 2000 * kMs));
+  rig.drv->safe_stop();
+  EXPECT_TRUE(pedalwave::test::wait_for(
+      [&] { return rig.emu->bank().torque_off(0) && rig.emu->bank().torque_off(1); }, 2000 * kMs));
+  EXPECT_FALSE(rig.x().torque_on(0));
+  // A NaN torque turns that servo's torque off, as on a pedalwave module.
+  cmd.tau[1] = std::nan("");
+  rig.drv->write(cmd);
+  EXPECT_TRUE(rig.x().torque_on(0));
+  EXPECT_FALSE(rig.x().torque_on(1));
+}
+
+TEST(XSeriesDriver, BusBudgetCountsTheBulkReadAndBothDevices) {
+  // 5 joints at 4 Mbaud: Bulk Read 77 + 5 × (25 + 14) + Sync Write 35 = 307 bytes, 10 return
+  // delays of 20 µs: 968 µs. Fits at 500 Hz, not at 1 kHz (80 %).
+  EXPECT_EQ(pd::xseries_bytes_per_cycle(5), 307);
+  pd::SerialBusSpec s{5, 2e-3, 4'000'000, 20e-6, 0.0, 0.8};
+  s.x_series = true;
+  EXPECT_NEAR(pd::serial_bus_budget(s).time_needed_s, 307 * 10.0 / 4e6 + 10 * 20e-6, 1e-12);
+  EXPECT_TRUE(pd::serial_bus_budget(s).fits);
+  s.period_s = 1e-3;
+  try {
+    pd::check_serial_bus_budget(s);
+    ADD_FAILURE() << "5 X-series joints at 1 kHz fit";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("X-series"), std::string::npos) << e.what();
+  }
+}

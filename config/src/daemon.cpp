@@ -195,12 +195,11 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
       if (!x && r.has(key))
         r[key].fail(std::string("no ") + key + " without devices: x_series (" + key +
                     " is the stock X-series servos')");
-    if (x && r.has("command_timeout"))
-      r["command_timeout"].fail("no command_timeout with devices: x_series (a stock servo has no "
-                                "command lifetime register: it holds its Goal Current until told)");
     d.serial.return_delay_s = r.bounded("return_delay", 20e-6, 0, 0.1, "s");
     d.serial.turnaround_s = r.bounded("turnaround", 0.0, 0, 0.1, "s");
-    d.serial.command_timeout_s = r.bounded("command_timeout", 0.5, 0, 10, "s", true);
+    // X-series: the servos' Bus Watchdog (98), 1 … 127 × 20 ms.
+    d.serial.command_timeout_s =
+        x ? r.bounded("command_timeout", 0.5, 0.02, 2.54, "s") : r.bounded("command_timeout", 0.5, 0, 10, "s", true);
     d.serial.max_load = r.bounded("max_load", 0.8, 0, 1, "-", true);
     d.serial.period_s = period;
     if (x) {

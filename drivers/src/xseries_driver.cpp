@@ -87,6 +87,13 @@ XSeriesDriver::XSeriesDriver(int fd, const SerialConfig& cfg)
                                   std::to_string(cfg.return_delay_s) +
                                   " s, expected 0 … 508e-6 s (register 9: 0 … 254 × 2 µs)");
     return_delay_steps_ = static_cast<std::uint8_t>(steps);
+    const double wd = std::ceil(cfg.command_timeout_s / 0.02 - 1e-9);
+    if (!(wd >= 1 && wd <= 127))
+      throw std::invalid_argument("X-series driver: command_timeout = " +
+                                  std::to_string(cfg.command_timeout_s) +
+                                  " s, expected 0.02 … 2.54 s (the servos' Bus Watchdog, register "
+                                  "98: 1 … 127 × 20 ms)");
+    watchdog_steps_ = static_cast<std::uint8_t>(wd);
     SerialBusSpec spec{cfg.joints, cfg.period_s, cfg.baud, cfg.return_delay_s, cfg.turnaround_s,
                        cfg.max_load};
     spec.x_series = true;
@@ -284,7 +291,12 @@ void XSeriesDriver::configure(std::int64_t reply_timeout_ns) {
       throw std::runtime_error(name(j, false) + ": " +
                                register_name(false, dxl::x::kRegCurrentLimit) +
                                " = 0, expected > 0 (the servo could deliver no torque)");
+    // Bus Watchdog (98): a servo that hears nothing for command_timeout stops by itself (a
+    // stock servo otherwise holds its Goal Current when the host is gone). An expired one (−1) is
+    // cleared first (0), which also makes its goal writable again.
+    write_registers(j, false, dxl::x::kRegBusWatchdog, {0}, reply_timeout_ns);
     write_registers(j, false, dxl::x::kRegGoalCurrent, {0, 0}, reply_timeout_ns);
+    write_registers(j, false, dxl::x::kRegBusWatchdog, {watchdog_steps_}, reply_timeout_ns);
     goal_[ju] = 0;
     // The sensor: model, firmware, ID, baud in one Read of 0 … 8; its errors; its return delay.
     const std::vector<std::uint8_t> s = read_registers(j, true, 0, 9, reply_timeout_ns);

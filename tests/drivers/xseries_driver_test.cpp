@@ -241,3 +241,46 @@ TEST(XSeriesDriver, BusBudgetCountsTheBulkReadAndBothDevices) {
     EXPECT_NE(std::string(e.what()).find("X-series"), std::string::npos) << e.what();
   }
 }
+
+TEST(XSeriesDriver, TheBusWatchdogStopsAServoWhoseHostWentQuiet) {
+  const int joints = 2;
+  pd::SerialConfig cfg = x_config(joints);
+  cfg.command_timeout_s = 0.1;  // Bus Watchdog 5 × 20 ms
+  XRig rig(joints, cfg);
+  rig.drv->configure_modules();
+  pd::Feedback fb{};
+  pd::Command cmd{};
+  cmd.joints = joints;
+  cmd.tau[0] = cmd.tau[1] = 0.05;
+  std::int64_t t0 = pedalwave::test::now_ns();
+  rig.drv->read(t0, t0 + 1500'000, fb);
+  rig.drv->write(cmd);
+  ASSERT_TRUE(pedalwave::test::wait_for([&] { return !rig.emu->bank().torque_off(0); }, 2000 * kMs));
+  // The host keeps reading for 0.2 s but writes no goal: past the watchdog, the outputs are off.
+  for (int i = 0; i < 100; ++i) {
+    t0 = pedalwave::test::now_ns();
+    rig.drv->read(t0, t0 + 1500'000, fb);
+    pedalwave::test::sleep_until(t0 + 2 * kMs);
+  }
+  EXPECT_TRUE(rig.emu->bank().torque_off(0));
+  EXPECT_TRUE(rig.emu->bank().torque_off(1));
+  EXPECT_GE(rig.emu->stats().lifetime_expired.load(), 2u);
+  // Configuring again clears the watchdog error: the goal acts again.
+  rig.drv->configure_modules();
+  t0 = pedalwave::test::now_ns();
+  rig.drv->read(t0, t0 + 1500'000, fb);
+  rig.drv->write(cmd);
+  EXPECT_TRUE(pedalwave::test::wait_for([&] { return !rig.emu->bank().torque_off(0); }, 2000 * kMs));
+}
+
+TEST(XSeriesDriver, RefusesACommandTimeoutTheBusWatchdogCannotHold) {
+  pd::SerialConfig cfg = x_config(2);
+  cfg.command_timeout_s = 3.0;
+  Pty pty;
+  try {
+    pd::SerialDriver d(pd::open_serial_port(pty.slave, cfg.baud), cfg);
+    ADD_FAILURE() << "a 3 s Bus Watchdog was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("expected 0.02 … 2.54 s"), std::string::npos) << e.what();
+  }
+}

@@ -98,6 +98,7 @@ TEST(XSeriesWalk, StockServosWalkWithTheHostPd) {
   EXPECT_EQ(r.emu.rx_errors, 0u);
   EXPECT_LT(c.missing, 5 * cycles * 15 / 100) << "missing " << c.missing;
   EXPECT_TRUE(r.all_modules_off) << "safe stop: Torque Enable 0 reached every servo";
+  EXPECT_EQ(r.emu.lifetime_expired, 0u) << "the servos' Bus Watchdog (0.5 s) never expired";
   EXPECT_TRUE(r.plant.all_off);
   EXPECT_FALSE(r.plant.failed);
   ASSERT_TRUE(std::isfinite(r.speed));

@@ -242,8 +242,12 @@ int main(int argc, char** argv) {
   else if (pty) std::printf("bus: %d baud, return delay %g µs, wire time modeled\n", baud, return_delay_us);
   else std::printf("bus: %g Mbit/s%s, wire time modeled\n", bitrate / 1e6,
                    fd ? (", data phase " + std::to_string(data_bitrate / 1e6).substr(0, 4) + " Mbit/s").c_str() : "");
-  std::printf("module clocks: free-running µs counters, rate errors spread over ±%g ppm; command "
-              "lifetime %g ms\n", drift_ppm, timeout_ms);
+  if (x_series)
+    std::printf("stock servos: no module clock (a servo samples when the Bulk Read arrives), no "
+                "command lifetime (a servo holds its Goal Current until told)\n");
+  else
+    std::printf("module clocks: free-running µs counters, rate errors spread over ±%g ppm; command "
+                "lifetime %g ms\n", drift_ppm, timeout_ms);
   {
     std::string applied, skipped;
     for (const pedalwave::model::FaultSpec& sf : robot->plant().faults())

@@ -9,8 +9,9 @@
 // number 1020 XM430-W350 or 1030 XM430-W210, firmware, ID, baud rate, Operating Mode), Hardware
 // Error Status 0, Torque Enable 0, Operating Mode 0 (current control) written with torque off
 // (or, with set_operating_mode = false, a servo in another mode refused), return delay written,
-// Current Limit (38) read, Goal Current 0; per sensor model 0x5053, ID, baud, Hardware Error
-// Status, return delay. Torque stays off until the first command without torque_off.
+// Current Limit (38) read, Goal Current 0, Bus Watchdog (98) = command_timeout in 20 ms steps
+// (a servo that hears nothing that long stops by itself); per sensor model 0x5053, ID, baud,
+// Hardware Error Status, return delay. Torque stays off until the first command without torque_off.
 // Cycle: read() drains what is waiting (answers to older cycles: late, not used), sends one Bulk
 // Read (0x92) of Present Current/Velocity/Position (126, 10 bytes) from every servo and the
 // deflection (124, 2 bytes) from every sensor, gathers the 2J status packets until the deadline.
@@ -100,6 +101,7 @@ class XSeriesDriver final : public Driver {
   double k_t_ = 1.78;
   bool set_mode_ = true;
   std::uint8_t return_delay_steps_ = 0;
+  std::uint8_t watchdog_steps_ = 25;   // Bus Watchdog to set [20 ms]
   std::int64_t write_timeout_ns_ = 0;
   std::array<XSeriesIdentity, kMaxJoints> identity_{};
   std::array<double, kMaxJoints> lsb_{};           // Goal Current LSB per servo [A]

@@ -104,9 +104,9 @@ constexpr DriverKey kDriverKeys[] = {
     {"return_delay", "the serial driver's", false, false, true},
     {"turnaround", "the serial driver's", false, false, true},
     {"devices", "the serial driver's", false, false, true},
-    {"torque_constant", "the serial driver's (devices: x_series)", false, false, true},
-    {"sensor_id_offset", "the serial driver's (devices: x_series)", false, false, true},
-    {"set_operating_mode", "the serial driver's (devices: x_series)", false, false, true},
+    {"torque_constant", "the serial driver's", false, false, true},     // devices: x_series only
+    {"sensor_id_offset", "the serial driver's", false, false, true},    // devices: x_series only
+    {"set_operating_mode", "the serial driver's", false, false, true},  // devices: x_series only
 };
 
 // `type` and every key above: what `driver:` may hold.

@@ -417,12 +417,21 @@ void XSeriesDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns,
     ++counters_.malformed;
     return;
   }
-  // A status packet carries no cycle counter: what was waiting before the request, or came after
-  // the deadline, answers an older Bulk Read (late, not used); a second answer of a device in one
-  // cycle means the first one was an older Bulk Read's (late), and the newer one is kept.
+  // A status packet carries no cycle counter: what was waiting before the request answers an
+  // older Bulk Read — taken as the previous one's (kept for a joint without a fresh answer) —, what
+  // comes after the deadline is late (read at the next cycle's start is too late now: dropped);
+  // a second answer of a device in one cycle means the first one was an older Bulk Read's
+  // (late), and the newer one is kept.
   if (before_request || stamp_ns > deadline_ns_) {
     ++counters_.late;
     status_[ju] |= kStatusLate;
+    if (before_request && servo) {
+      dxl::x::decode_servo_feedback(p.params.data(), lsb_[ju], late_servo_[ju]);
+      late_servo_got_[ju] = true;
+    } else if (before_request) {
+      late_sensor_[ju] = wire::get_i16(p.params.data()) * wire::kDeflectionLsb;
+      late_sensor_got_[ju] = true;
+    }
     return;
   }
   bool& got = servo ? got_servo_[ju] : got_sensor_[ju];
@@ -453,6 +462,7 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
     const auto ju = static_cast<std::size_t>(j);
     status_[ju] = 0;
     got_servo_[ju] = got_sensor_[ju] = false;
+    late_servo_got_[ju] = late_sensor_got_[ju] = false;
   }
   fresh_packets_ = 0;
   stamp_ns_ = 0;
@@ -468,7 +478,12 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
 
   // 2. The Bulk Read: every servo and sensor samples when it has arrived.
   const std::int64_t t0 = detail::monotonic_ns();
+  prev_sample_ns_ = sample_ns_;
+  prev_applied_seq_ = sample_applied_seq_;
+  prev_applied_ns_ = sample_applied_ns_;
   sample_ns_ = t0 + bulk_wire_ns_;
+  sample_applied_seq_ = applied_seq_;
+  sample_applied_ns_ = applied_ns_;
   const bool sent = write_all(bulk_tx_.data(), bulk_len_, deadline_ns);
   if (sent) {
     ++counters_.frames_tx;
@@ -496,7 +511,7 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   out.seq = cycle_;
   out.stamp_ns = fresh_packets_ > 0 ? stamp_ns_ : detail::monotonic_ns();
   out.timing = FeedbackTiming::kModule;
-  int fresh = 0;
+  int fresh = 0, late_used = 0;
   for (int j = 0; j < joints_; ++j) {
     const auto ju = static_cast<std::size_t>(j);
     std::uint16_t st = status_[ju];
@@ -509,7 +524,20 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
       out.sample_ns[ju] = sample_ns_;
       out.applied_seq[ju] = applied_seq_;
       out.applied_ns[ju] = applied_seq_ == kNoCommandSeq ? 0 : applied_ns_[ju];
+      handed_ns_[ju] = sample_ns_;
       ++fresh;
+    } else if (late_servo_got_[ju] && late_sensor_got_[ju] && prev_sample_ns_ > handed_ns_[ju]) {
+      // No fresh answer, but the previous Bulk Read's came late: an older sample, at its time.
+      beta_[ju] = late_servo_[ju].position;
+      beta_dot_[ju] = late_servo_[ju].velocity;
+      deflection_[ju] = late_sensor_[ju];
+      have_sample_[ju] = true;
+      out.sample_ns[ju] = prev_sample_ns_;
+      out.applied_seq[ju] = prev_applied_seq_;
+      out.applied_ns[ju] = prev_applied_seq_ == kNoCommandSeq ? 0 : prev_applied_ns_[ju];
+      handed_ns_[ju] = prev_sample_ns_;
+      ++counters_.late_used;
+      ++late_used;
     } else {
       st |= kStatusMissing;
       ++counters_.missing;
@@ -523,8 +551,8 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
     out.status[ju] = static_cast<std::uint16_t>(st | alert_[ju]);
   }
   if (!sent) return IoStatus::kBusError;
-  if (fresh == 0) return IoStatus::kTimeout;
-  if (fresh < joints_) return IoStatus::kPartial;
+  if (fresh + late_used == 0) return IoStatus::kTimeout;
+  if (fresh + late_used < joints_) return IoStatus::kPartial;
   return IoStatus::kOk;
 }
 

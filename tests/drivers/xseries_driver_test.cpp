@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <unistd.h>
 
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <memory>
@@ -14,6 +15,7 @@
 #include <string>
 #include <system_error>
 #include <thread>
+#include <vector>
 
 #include "cycle_harness.hpp"
 #include "pedalwave/drivers/bus_budget.hpp"
@@ -59,12 +61,14 @@ struct XRig {
   std::unique_ptr<pd::SerialModuleEmulator> emu;
   std::atomic<bool> stop{false};
   std::thread th;
-  explicit XRig(int joints, const pd::SerialConfig& cfg, pd::XSeriesConfig x = {}) {
+  explicit XRig(int joints, const pd::SerialConfig& cfg, pd::XSeriesConfig x = {},
+                pd::FaultConfig faults = {}) {
     drv = std::make_unique<pd::SerialDriver>(pd::open_serial_port(pty.slave, cfg.baud), cfg);
     pd::EmulatorConfig ec;
     ec.joints = joints;
     ec.serial_devices = pd::SerialDevices::kXSeries;
     ec.x = x;
+    ec.faults = faults;
     emu = std::make_unique<pd::SerialModuleEmulator>(pty.master, ec, plant);
     th = std::thread([this] { emu->run(stop); });
   }
@@ -77,7 +81,7 @@ struct XRig {
 
 std::string configure_error(pd::SerialDriver& d) {
   try {
-    d.configure_modules(20 * kMs);
+    d.configure_modules(100 * kMs);  // generous: the machine may be loaded
   } catch (const std::runtime_error& e) {
     return e.what();
   }
@@ -141,23 +145,31 @@ TEST(XSeriesDriver, CycleAppliesTheHostLawAsGoalCurrentWithHostTiming) {
   pd::Command cmd{};
   cmd.joints = joints;
   std::int64_t t0 = pedalwave::test::now_ns();
-  int ok = 0, applied_prev = 0, sample_inside = 0;
+  int ok = 0, fresh = 0, applied_prev = 0, sample_inside = 0;
+  std::array<bool, pd::kMaxJoints> ever{};
   std::uint64_t prev_seq = pd::kNoCommandSeq;
   std::int64_t prev_write = 0;
   for (int i = 0; i < cycles; ++i) {
+    const std::int64_t read_start = pedalwave::test::now_ns();
     const pd::IoStatus s = rig.drv->read(t0, t0 + 1500'000, fb);
+    const std::int64_t read_end = pedalwave::test::now_ns();
     if (s == pd::IoStatus::kOk) ++ok;
     ASSERT_EQ(fb.timing, pd::FeedbackTiming::kModule);
     for (int j = 0; j < joints; ++j) {
-      if (fb.status[j] & pd::kStatusMissing) continue;
-      // Sampled when the Bulk Read arrived: after this cycle's start, before the deadline.
-      if (fb.sample_ns[j] > t0 && fb.sample_ns[j] < t0 + 1500'000) ++sample_inside;
+      if (fb.status[j] & (pd::kStatusMissing | pd::kStatusLate)) continue;  // late: its own test
+      ++fresh;
+      // Sampled when the Bulk Read arrived: inside this read() call.
+      if (fb.sample_ns[j] > read_start && fb.sample_ns[j] < read_end) ++sample_inside;
       // The command in effect is the previous write's, applied after it went out.
       if (fb.applied_seq[j] == prev_seq &&
           (prev_seq == pd::kNoCommandSeq || fb.applied_ns[j] > prev_write))
         ++applied_prev;
-      EXPECT_EQ((fb.status[j] & pd::kStatusTorqueOff) != 0, i == 0) << i;
+      EXPECT_EQ((fb.status[j] & pd::kStatusTorqueOff) != 0, !rig.x().torque_on(j)) << i;
     }
+    std::array<bool, pd::kMaxJoints> sampled{};  // a sample of the joint was ever handed out
+    for (int j = 0; j < joints; ++j)
+      sampled[static_cast<std::size_t>(j)] = ever[static_cast<std::size_t>(j)] =
+          ever[static_cast<std::size_t>(j)] || !(fb.status[j] & pd::kStatusMissing);
     // Host law: kp toward 0.2 rad, a feed-forward torque; the goal is u / k_t in 2.69 mA.
     for (int j = 0; j < joints; ++j) {
       cmd.tau[j] = 0.01 * (j + 1);
@@ -171,6 +183,11 @@ TEST(XSeriesDriver, CycleAppliesTheHostLawAsGoalCurrentWithHostTiming) {
     ASSERT_EQ(rig.drv->write(cmd), pd::IoStatus::kOk);
     prev_seq = cmd.seq;
     for (int j = 0; j < joints; ++j) {
+      // Without any sample yet there is no law to evaluate: that servo's torque stays off.
+      if (!sampled[static_cast<std::size_t>(j)]) {
+        EXPECT_FALSE(rig.x().torque_on(j)) << i;
+        continue;
+      }
       const double u = cmd.tau[j] + cmd.kp[j] * (0.2 - fb.beta[j]);
       EXPECT_EQ(rig.x().goal(j), static_cast<std::int16_t>(std::lround(u / (k_t * lsb)))) << i;
       EXPECT_TRUE(rig.x().torque_on(j));
@@ -180,12 +197,16 @@ TEST(XSeriesDriver, CycleAppliesTheHostLawAsGoalCurrentWithHostTiming) {
     pedalwave::test::sleep_until(t0);
   }
   const pd::DriverCounters c = rig.drv->counters();
-  // A loaded machine (or the sanitizers' slowdown) misses some 1.5 ms deadlines: 263 of 300 were
-  // complete under ASan at load 5; a broken exchange would complete none.
-  EXPECT_GE(ok, cycles / 2);
-  EXPECT_GE(sample_inside, ok * joints);
-  EXPECT_GE(applied_prev, ok * joints);
-  EXPECT_EQ(c.checksum + c.malformed + c.tx_dropped, 0u);
+  // A loaded machine (or the sanitizers' slowdown) misses some 1.5 ms deadlines: 263 of 300
+  // cycles were complete under ASan at load 5, 124 at load 8; a broken exchange completes none.
+  EXPECT_GE(fresh, cycles * joints / 4);
+  EXPECT_GT(ok, 0);
+  EXPECT_EQ(sample_inside, fresh);
+  EXPECT_EQ(applied_prev, fresh);
+  EXPECT_EQ(c.checksum + c.tx_dropped, 0u);
+  // A packet still incomplete when the next cycle starts is dropped as a short read (malformed):
+  // at load 8 on 2 cores, 2 in 300 cycles.
+  EXPECT_LE(c.malformed, static_cast<std::uint64_t>(cycles / 20));
   EXPECT_GE(c.frames_rx, static_cast<std::uint64_t>(2 * joints * ok));
   // The plant was driven by the goal current's torque, and the feedback is the plant's, in the
   // servo's units: β to 4096 per revolution, the deflection to the sensor's 2e-5 rad.
@@ -285,4 +306,54 @@ TEST(XSeriesDriver, RefusesACommandTimeoutTheBusWatchdogCannotHold) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("expected 0.02 … 2.54 s"), std::string::npos) << e.what();
   }
+}
+
+// Answers that miss the deadline but come before the next request are the previous Bulk Read's:
+// a joint without a fresh answer gets them as an older sample (kStatusLate, not missing), at the
+// previous Bulk Read's time, with the command that was in effect then.
+TEST(XSeriesDriver, LateAnswersAreThePreviousSampleAtItsTime) {
+  const int joints = 2, cycles = 60;
+  pd::FaultConfig f;
+  f.reply_latency_ns = 1'300'000;  // every answer 1.3 ms after the Bulk Read: past a 0.6 ms deadline
+  XRig rig(joints, x_config(joints), {}, f);
+  rig.drv->configure_modules();
+  pd::Feedback fb{};
+  pd::Command cmd{};
+  cmd.joints = joints;
+  std::int64_t t0 = pedalwave::test::now_ns(), prev_t0 = 0;  // prev_t0: the previous read's start
+  int late_samples = 0, at_previous_time = 0;
+  std::uint64_t written = pd::kNoCommandSeq;  // the last command that went out
+  std::vector<std::uint64_t> before_read;     // ... before read i
+  for (int i = 0; i < cycles; ++i) {
+    before_read.push_back(written);
+    const std::int64_t read_start = pedalwave::test::now_ns();
+    rig.drv->read(t0, t0 + 600'000, fb);
+    for (int j = 0; j < joints; ++j) {
+      // (A fresh one here is an older answer that came after this cycle's request on a loaded
+      // machine — without a cycle counter it cannot be told apart: PROTOCOL.md §3.6 limit (a).)
+      // (kStatusLate on a fresh sample: another late packet of the joint came this cycle.)
+      if ((fb.status[j] & pd::kStatusMissing) || !(fb.status[j] & pd::kStatusLate) ||
+          fb.sample_ns[j] >= read_start)
+        continue;
+      ++late_samples;
+      if (fb.sample_ns[j] > prev_t0) ++at_previous_time;
+      // The previous Bulk Read (read i − 1): the command written last before it acted.
+      if (i >= 1) {
+        EXPECT_EQ(fb.applied_seq[j], before_read[static_cast<std::size_t>(i - 1)]) << i;
+      }
+    }
+    cmd.seq = static_cast<std::uint64_t>(i + 1);
+    cmd.tau[0] = cmd.tau[1] = 0.01;
+    if (rig.drv->write(cmd) == pd::IoStatus::kOk) written = cmd.seq;
+    prev_t0 = read_start;
+    t0 += 3 * kMs;
+    if (t0 < pedalwave::test::now_ns()) t0 = pedalwave::test::now_ns();
+    pedalwave::test::sleep_until(t0);
+  }
+  const pd::DriverCounters c = rig.drv->counters();
+  // A loaded machine may deliver some answers later still (then missing); most are used.
+  EXPECT_GE(late_samples, cycles * joints / 4);
+  EXPECT_EQ(at_previous_time, late_samples);
+  EXPECT_GE(c.late_used, static_cast<std::uint64_t>(late_samples));
+  EXPECT_GE(c.late, c.late_used * 2) << "servo and sensor answers";
 }

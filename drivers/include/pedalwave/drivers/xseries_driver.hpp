@@ -12,7 +12,9 @@
 // Current Limit (38) read, Goal Current 0, Bus Watchdog (98) = command_timeout in 20 ms steps
 // (a servo that hears nothing that long stops by itself); per sensor model 0x5053, ID, baud,
 // Hardware Error Status, return delay. Torque stays off until the first command without torque_off.
-// Cycle: read() drains what is waiting (answers to older cycles: late, not used), sends one Bulk
+// Cycle: read() drains what is waiting (answers that missed the previous cycle's deadline: late;
+// a joint without a fresh answer this cycle gets them, as the previous Bulk Read's sample,
+// kStatusLate, `late_used`), sends one Bulk
 // Read (0x92) of Present Current/Velocity/Position (126, 10 bytes) from every servo and the
 // deflection (124, 2 bytes) from every sensor, gathers the 2J status packets until the deadline.
 // write() evaluates the module law on the host from the last sample,
@@ -118,6 +120,17 @@ class XSeriesDriver final : public Driver {
   std::array<dxl::x::ServoFeedback, kMaxJoints> servo_{};   // this cycle's
   std::array<double, kMaxJoints> sensor_{};                 // this cycle's deflection [rad]
   std::array<std::uint16_t, kMaxJoints> alert_{};           // StatusBits from alert bits
+  // Answers that came after the previous cycle's deadline, before this cycle's request: the
+  // previous Bulk Read's, sampled at prev_sample_ns_ with prev_applied_* in effect.
+  std::array<bool, kMaxJoints> late_servo_got_{}, late_sensor_got_{};
+  std::array<dxl::x::ServoFeedback, kMaxJoints> late_servo_{};
+  std::array<double, kMaxJoints> late_sensor_{};
+  std::int64_t prev_sample_ns_ = 0;
+  std::uint64_t prev_applied_seq_ = kNoCommandSeq;
+  std::array<std::int64_t, kMaxJoints> prev_applied_ns_{};
+  std::uint64_t sample_applied_seq_ = kNoCommandSeq;        // in effect at sample_ns_
+  std::array<std::int64_t, kMaxJoints> sample_applied_ns_{};
+  std::array<std::int64_t, kMaxJoints> handed_ns_{};        // sample time handed out last [ns]
   std::array<std::uint16_t, kMaxJoints> status_{};
   // The sample handed out last (what write() evaluates the law on).
   std::array<double, kMaxJoints> beta_{}, beta_dot_{}, deflection_{};

@@ -121,6 +121,7 @@ XSeriesDriver::XSeriesDriver(int fd, const SerialConfig& cfg)
                                bulk_tx_, bulk_len_) != dxl::DxlStatus::kOk)
       throw std::invalid_argument("X-series driver: cannot build the Bulk Read packet");
     bulk_wire_ns_ = wire_ns(bulk_len_);
+    min_reply_ns_ = wire_ns(dxl::kHeaderSize + 4 + 2);  // the shortest answer: the sensor's
   } catch (...) {
     if (fd >= 0) ::close(fd);
     fd_ = -1;
@@ -422,13 +423,16 @@ void XSeriesDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns,
   // comes after the deadline is late (read at the next cycle's start is too late now: dropped);
   // a second answer of a device in one cycle means the first one was an older Bulk Read's
   // (late), and the newer one is kept.
-  if (before_request || stamp_ns > deadline_ns_) {
+  // An answer received before this request's last byte could have crossed the line and a status
+  // packet come back is no answer to it either: an older one, delivered late (a loaded host).
+  const bool older = before_request || stamp_ns < sample_ns_ + min_reply_ns_;
+  if (older || stamp_ns > deadline_ns_) {
     ++counters_.late;
     status_[ju] |= kStatusLate;
-    if (before_request && servo) {
+    if (older && servo) {
       dxl::x::decode_servo_feedback(p.params.data(), lsb_[ju], late_servo_[ju]);
       late_servo_got_[ju] = true;
-    } else if (before_request) {
+    } else if (older) {
       late_sensor_[ju] = wire::get_i16(p.params.data()) * wire::kDeflectionLsb;
       late_sensor_got_[ju] = true;
     }

@@ -146,6 +146,7 @@ class XSeriesDriver final : public Driver {
   std::array<std::uint8_t, dxl::kMaxPacket> bulk_tx_{};
   std::size_t bulk_len_ = 0;
   std::int64_t bulk_wire_ns_ = 0;
+  std::int64_t min_reply_ns_ = 0;  // wire time of the shortest status packet [ns]
   std::array<std::uint8_t, 4096> rx_{};
   std::size_t rx_len_ = 0;
   std::array<std::uint8_t, 3 * dxl::kMaxPacket> tx_{};

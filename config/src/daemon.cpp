@@ -103,6 +103,10 @@ constexpr DriverKey kDriverKeys[] = {
     {"baud", "the serial driver's", false, false, true},
     {"return_delay", "the serial driver's", false, false, true},
     {"turnaround", "the serial driver's", false, false, true},
+    {"devices", "the serial driver's", false, false, true},
+    {"torque_constant", "the serial driver's", false, false, true},     // devices: x_series only
+    {"sensor_id_offset", "the serial driver's", false, false, true},    // devices: x_series only
+    {"set_operating_mode", "the serial driver's", false, false, true},  // devices: x_series only
 };
 
 // `type` and every key above: what `driver:` may hold.
@@ -183,14 +187,32 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
       d.serial.baud = 4'000'000;
     }
     d.serial.joints = joints;
+    // What sits on the bus: pedalwave modules, or stock X-series servos in current control with a
+    // deflection sensor each (drivers/PROTOCOL.md §3.6).
+    const bool x = r.choice("devices", "pedalwave", {"pedalwave", "x_series"}) == "x_series";
+    d.serial.devices = x ? drivers::SerialDevices::kXSeries : drivers::SerialDevices::kPedalwave;
+    for (const char* key : {"torque_constant", "sensor_id_offset", "set_operating_mode"})
+      if (!x && r.has(key))
+        r[key].fail(std::string("no ") + key + " without devices: x_series (" + key +
+                    " is the stock X-series servos')");
     d.serial.return_delay_s = r.bounded("return_delay", 20e-6, 0, 0.1, "s");
     d.serial.turnaround_s = r.bounded("turnaround", 0.0, 0, 0.1, "s");
-    d.serial.command_timeout_s = r.bounded("command_timeout", 0.5, 0, 10, "s", true);
+    // X-series: the servos' Bus Watchdog (98), 1 … 127 × 20 ms.
+    d.serial.command_timeout_s =
+        x ? r.bounded("command_timeout", 0.5, 0.02, 2.54, "s") : r.bounded("command_timeout", 0.5, 0, 10, "s", true);
     d.serial.max_load = r.bounded("max_load", 0.8, 0, 1, "-", true);
     d.serial.period_s = period;
+    if (x) {
+      d.serial.torque_constant = r.bounded("torque_constant", 1.78, 0, 100, "N·m/A", true);
+      d.serial.sensor_id_offset = static_cast<int>(
+          r.integer("sensor_id_offset", 100, std::max(joints, 1), std::max(252 - joints, 1)));
+      d.serial.set_operating_mode = r.boolean("set_operating_mode", true);
+    }
     checked(r, "driver", [&] {
-      drivers::check_serial_bus_budget({d.serial.joints, d.serial.period_s, d.serial.baud,
-                                        d.serial.return_delay_s, d.serial.turnaround_s, d.serial.max_load});
+      drivers::SerialBusSpec spec{d.serial.joints, d.serial.period_s, d.serial.baud,
+                                  d.serial.return_delay_s, d.serial.turnaround_s, d.serial.max_load};
+      spec.x_series = x;
+      drivers::check_serial_bus_budget(spec);
     });
   }
 }
@@ -336,10 +358,12 @@ void derive_timeouts(const Reader& r, DaemonConfig& c) {
   if (d.kind == DriverKind::kSocketCan)
     window = drivers::can_reply_window_s({d.can.joints, period, d.can.bitrate, d.can.fd,
                                           d.can.data_bitrate, d.can.max_load});
-  else if (d.kind == DriverKind::kSerial)
-    window = drivers::serial_reply_window_s({d.serial.joints, period, d.serial.baud,
-                                             d.serial.return_delay_s, d.serial.turnaround_s,
-                                             d.serial.max_load});
+  else if (d.kind == DriverKind::kSerial) {
+    drivers::SerialBusSpec spec{d.serial.joints, period, d.serial.baud, d.serial.return_delay_s,
+                                d.serial.turnaround_s, d.serial.max_load};
+    spec.x_series = d.serial.devices == drivers::SerialDevices::kXSeries;
+    window = drivers::serial_reply_window_s(spec);
+  }
   char buf[256];
   std::string note;
   if (given_budget) {
@@ -477,6 +501,18 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
     p.admittance.Pi_n = {c.driver.scene.gait.eta};
   }
   if (r.has("controller")) read_controller(r["controller"], c);
+  // Stock X-series servos run no module law: the host evaluates the PD and sends a current, so
+  // the controller must place it there — and then its stability check applies (the rate and
+  // K_D must make the sampled PD stable; the paper's K_D = 15 needs > 2307 Hz).
+  if (c.driver.kind == DriverKind::kSerial && c.driver.serial.devices == drivers::SerialDevices::kXSeries &&
+      p.pd.placement != control::PdPlacement::kHost) {
+    const std::string why =
+        "pd_placement: host with driver.devices: x_series (a stock servo in current control runs "
+        "no module PD: the host evaluates it and sends Goal Current; choose rate_hz and K_D the "
+        "host-PD stability check accepts, e.g. config/runtime/xseries.yaml)";
+    if (r.has("controller") && r["controller"].has("pd_placement")) r["controller"]["pd_placement"].fail(why);
+    r["driver"]["devices"].fail(why);
+  }
   checked(r, "controller", [&] { control::GaitController probe(p); });
   if (r.has("observer")) {
     const Reader o = r["observer"];

@@ -148,13 +148,28 @@ int serial_bytes_per_cycle(int j) noexcept {
   return sync_counter + sync_read + j * status + sync_write;
 }
 
+int xseries_bytes_per_cycle(int j) noexcept {
+  const int bulk_read = static_cast<int>(dxl::worst_packet_size(1 + 2 * j * 5));
+  const int servo = static_cast<int>(dxl::worst_packet_size(2 + dxl::x::kFeedbackSize));
+  const int sensor = static_cast<int>(dxl::worst_packet_size(2 + 2));
+  const int sync_write = static_cast<int>(dxl::worst_packet_size(1 + 4 + j * (1 + 2)));
+  return bulk_read + j * (servo + sensor) + sync_write;
+}
+
+namespace {
+int bytes_per_cycle(const SerialBusSpec& s) noexcept {
+  return s.x_series ? xseries_bytes_per_cycle(s.joints) : serial_bytes_per_cycle(s.joints);
+}
+int devices(const SerialBusSpec& s) noexcept { return s.x_series ? 2 * s.joints : s.joints; }
+}  // namespace
+
 BusBudget serial_bus_budget(const SerialBusSpec& s) noexcept {
   if (s.joints <= 0 || s.joints > kMaxJoints || !(s.period_s > 0) || s.baud <= 0 ||
       !(s.max_load > 0))
     return BusBudget{};
-  const int bytes = serial_bytes_per_cycle(s.joints);
-  const double t = bytes * 10.0 / s.baud + s.joints * s.return_delay_s + 2.0 * s.turnaround_s;
-  return finish(3 + s.joints, t, s.period_s, s.max_load, s.baud);
+  const int bytes = bytes_per_cycle(s);
+  const double t = bytes * 10.0 / s.baud + devices(s) * s.return_delay_s + 2.0 * s.turnaround_s;
+  return finish(s.x_series ? 2 + 2 * s.joints : 3 + s.joints, t, s.period_s, s.max_load, s.baud);
 }
 
 double can_reply_window_s(const CanBusSpec& s) noexcept {
@@ -167,6 +182,12 @@ double can_reply_window_s(const CanBusSpec& s) noexcept {
 
 double serial_reply_window_s(const SerialBusSpec& s) noexcept {
   if (s.joints <= 0 || s.baud <= 0) return 0.0;
+  if (s.x_series)
+    return (static_cast<double>(dxl::worst_packet_size(1 + 2 * s.joints * 5)) +
+            s.joints * static_cast<double>(dxl::worst_packet_size(2 + dxl::x::kFeedbackSize) +
+                                           dxl::worst_packet_size(2 + 2))) *
+               10.0 / s.baud +
+           2 * s.joints * s.return_delay_s + s.turnaround_s;
   const double bytes = static_cast<double>(dxl::worst_packet_size(1 + 3)) - 1 + 14 + s.joints +
                        s.joints * static_cast<double>(dxl::worst_packet_size(2 + dxl::kFeedbackBlockSize));
   return bytes * 10.0 / s.baud + s.joints * s.return_delay_s + s.turnaround_s;
@@ -194,18 +215,20 @@ BusBudget check_serial_bus_budget(const SerialBusSpec& s) {
       break;
     }
   }
-  const int bytes = serial_bytes_per_cycle(s.joints);
-  const double wire_time = b.time_available_s - s.joints * s.return_delay_s - 2 * s.turnaround_s;
+  const int bytes = bytes_per_cycle(s);
+  const double wire_time = b.time_available_s - devices(s) * s.return_delay_s - 2 * s.turnaround_s;
   const std::string baud_option =
       wire_time > 0
           ? "raise the baud rate (≥ " + fmt("%.0f", std::ceil(bytes * 10.0 / wire_time)) +
                 " baud needed)"
           : std::string("shorten the return delays / turnaround (they alone exceed the period)");
   throw std::invalid_argument(
-      "serial bus budget exceeded: " + std::to_string(s.joints) + " joints at " +
+      std::string(s.x_series ? "serial bus (X-series servos + sensors) budget exceeded: "
+                             : "serial bus budget exceeded: ") +
+      std::to_string(s.joints) + " joints at " +
       fmt("%g", 1.0 / s.period_s) + " Hz, " + std::to_string(s.baud) + " baud need " +
       std::to_string(bytes) + " bytes per cycle (" + std::to_string(bytes * 10) +
-      " bits, worst-case stuffing) + " + fmt("%.0f", s.joints * s.return_delay_s * 1e6) +
+      " bits, worst-case stuffing) + " + fmt("%.0f", devices(s) * s.return_delay_s * 1e6) +
       " µs return delays + " + fmt("%.0f", 2 * s.turnaround_s * 1e6) + " µs turnaround = " +
       fmt("%.0f", b.time_needed_s * 1e6) + " µs, " + fmt("%.0f", b.time_available_s * 1e6) +
       " µs available (max load " + fmt("%.0f", s.max_load * 100) + " %): load " +

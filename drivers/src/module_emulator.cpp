@@ -673,8 +673,13 @@ void SerialModuleEmulator::refresh(int d) noexcept {
   }
   // The servo: what its current controller delivers (the goal, with torque on in current mode),
   // the output shaft's rate and angle in its units.
+  // The Bus Watchdog expired (the bank's lifetime turned the output off): it reads −1.
+  if (t[dxl::x::kRegBusWatchdog] != 0 && t[dxl::x::kRegTorqueEnable] != 0 && bank_.timing(j).no_command &&
+      bank_.torque_off(j))
+    t[dxl::x::kRegBusWatchdog] = 0xFF;
   const bool driving = t[dxl::x::kRegTorqueEnable] != 0 &&
-                       t[dxl::x::kRegOperatingMode] == dxl::x::kOperatingModeCurrent;
+                       t[dxl::x::kRegOperatingMode] == dxl::x::kOperatingModeCurrent &&
+                       t[dxl::x::kRegBusWatchdog] != 0xFF;
   wire::put_u16(t.data() + dxl::x::kRegPresentCurrent,
                 driving ? wire::get_u16(t.data() + dxl::x::kRegGoalCurrent) : 0);
   wire::put_u32(t.data() + dxl::x::kRegPresentVelocity,
@@ -722,11 +727,19 @@ std::uint8_t SerialModuleEmulator::write_table(int d, std::uint16_t addr,
   auto& t = table_[static_cast<std::size_t>(d)];
   const bool torque_on = x_ ? d < kSensor && t[dxl::x::kRegTorqueEnable] != 0 : !bank_.torque_off(d);
   if (eeprom && torque_on) return dxl::kErrAccess;  // EEPROM: torque off only
+  // After a Bus Watchdog error the goal values are read-only until 98 is written 0 (e-Manual).
+  if (x_ && d < kSensor && t[dxl::x::kRegBusWatchdog] == 0xFF &&
+      addr < dxl::x::kRegGoalCurrent + 2 && std::size_t{addr} + data.size() > dxl::x::kRegGoalCurrent)
+    return dxl::kErrAccess;
   const bool was_on = t[dxl::kRegTorqueEnable] != 0;
   std::memcpy(t.data() + addr, data.data(), data.size());
   const std::size_t end = std::size_t{addr} + data.size();
   auto touches = [&](std::uint16_t first, std::size_t n) { return addr < first + n && end > first; };
   if (x_) {
+    // A servo's Bus Watchdog (98, 20 ms steps, 0 = off): the bank's command lifetime — a servo
+    // that got no Goal Current / Torque Enable for that long turns its output off (PROTOCOL.md §3.6).
+    if (d < kSensor && touches(dxl::x::kRegBusWatchdog, 1))
+      bank_.set_command_timeout(d, std::int64_t{t[dxl::x::kRegBusWatchdog]} * dxl::x::kBusWatchdogUnitNs);
     // A servo: a new goal current or torque enable acts at once (a sensor has nothing to act).
     if (d < kSensor && (touches(dxl::x::kRegGoalCurrent, 2) ||
                         (touches(dxl::x::kRegTorqueEnable, 1) &&

@@ -15,6 +15,7 @@
 
 #include "pedalwave/drivers/bus_budget.hpp"
 #include "pedalwave/drivers/wire.hpp"
+#include "pedalwave/drivers/xseries_driver.hpp"
 #include "posix_util.hpp"
 
 namespace pedalwave::drivers {
@@ -91,8 +92,10 @@ int open_serial_port(const std::string& path, int baud) {
 }
 
 std::unique_ptr<SerialDriver> SerialDriver::open(const SerialConfig& cfg) {
-  check_serial_bus_budget({cfg.joints, cfg.period_s, cfg.baud, cfg.return_delay_s,
-                           cfg.turnaround_s, cfg.max_load});
+  SerialBusSpec spec{cfg.joints, cfg.period_s, cfg.baud, cfg.return_delay_s, cfg.turnaround_s,
+                     cfg.max_load};
+  spec.x_series = cfg.devices == SerialDevices::kXSeries;
+  check_serial_bus_budget(spec);
   auto d = std::make_unique<SerialDriver>(open_serial_port(cfg.device, cfg.baud), cfg);
   d->configure_modules();
   return d;
@@ -101,6 +104,11 @@ std::unique_ptr<SerialDriver> SerialDriver::open(const SerialConfig& cfg) {
 SerialDriver::SerialDriver(int fd, const SerialConfig& cfg)
     : fd_(fd), joints_(cfg.joints), write_timeout_ns_(cfg.write_timeout_ns) {
   baud_ = cfg.baud;
+  if (cfg.devices == SerialDevices::kXSeries) {  // stock servos + sensors: another driver
+    fd_ = -1;
+    x_ = std::make_unique<XSeriesDriver>(fd, cfg);
+    return;
+  }
   try {
     if (fd < 0)
       throw std::invalid_argument("SerialDriver: fd = " + std::to_string(fd) +
@@ -245,7 +253,17 @@ void SerialDriver::write_registers(int j, std::uint16_t addr, const std::vector<
   }
 }
 
+const ModuleIdentity& SerialDriver::identity(int j) const {
+  return identity_[static_cast<std::size_t>(j)];
+}
+
+const DriverCounters& SerialDriver::counters() const { return x_ ? x_->counters() : counters_; }
+
 void SerialDriver::configure_modules(std::int64_t reply_timeout_ns) {
+  if (x_) {
+    x_->configure(reply_timeout_ns);
+    return;
+  }
   const int want_baud = dxl::baud_index(baud_);
   if (want_baud < 0)
     throw std::invalid_argument("serial bus: driver.baud = " + std::to_string(baud_) +
@@ -431,7 +449,8 @@ void SerialDriver::poll_overruns() noexcept {
   overruns_ = total;
 }
 
-IoStatus SerialDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, Feedback& out) {
+IoStatus SerialDriver::read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback& out) {
+  if (x_) return x_->read(now_ns, deadline_ns, out);
   ++cycle_;
   counter_ = static_cast<std::uint8_t>(counter_ + 1);
   for (int j = 0; j < joints_; ++j) {
@@ -566,12 +585,14 @@ bool SerialDriver::send_commands(const Command* cmd, bool all_off, std::int64_t 
 }
 
 IoStatus SerialDriver::write(const Command& cmd) {
+  if (x_) return x_->write(cmd);
   return send_commands(&cmd, false, detail::monotonic_ns() + write_timeout_ns_)
              ? IoStatus::kOk
              : IoStatus::kBusError;
 }
 
 void SerialDriver::safe_stop() {
+  if (x_) return x_->safe_stop();
   send_commands(nullptr, true, detail::monotonic_ns() + 20'000'000);
 }
 

@@ -296,6 +296,17 @@ const std::vector<KeyRow> kDaemonKeys = {
     {"driver.device", "rate_hz: 250\ndriver:\n  type: serial\n  device: @\n", "/dev/ttyS1", "[1]", "ttyUSB0",
      "an absolute device path"},
     {"driver.turnaround", "rate_hz: 250\ndriver:\n  type: serial\n  turnaround: @\n", "1e-5", "x", "1", "a number in [0, 0.1] [s]"},
+    {"driver.devices", "rate_hz: 250\ndriver:\n  type: serial\n  devices: @\ncontroller: {pd_placement: host, K_D: 0.5}\n",
+     "x_series", "[1]", "stock", "one of pedalwave, x_series"},
+    {"driver.torque_constant",
+     "rate_hz: 250\ndriver:\n  type: serial\n  devices: x_series\n  torque_constant: @\ncontroller: {pd_placement: host, K_D: 0.5}\n",
+     "1.5", "x", "1000", "a number in (0, 100] [N·m/A]"},
+    {"driver.sensor_id_offset",
+     "rate_hz: 250\ndriver:\n  type: serial\n  devices: x_series\n  sensor_id_offset: @\ncontroller: {pd_placement: host, K_D: 0.5}\n",
+     "50", "x", "250", "an integer in [5, 247]"},
+    {"driver.set_operating_mode",
+     "rate_hz: 250\ndriver:\n  type: serial\n  devices: x_series\n  set_operating_mode: @\ncontroller: {pd_placement: host, K_D: 0.5}\n",
+     "false", "sometimes", "", ""},
     {"controller.k_c", kSimDriver + "controller:\n  k_c: @\n", "5", "x", "1e300", "a number in [-1000, 1000]"},
     {"controller.K_p", kSimDriver + "controller:\n  K_p: @\n", "30", "{a: 1}", "-1", "a number in [0, 1e+06]"},
     {"controller.pd_placement", kSimDriver + "controller:\n  pd_placement: @\n", "module", "[1]", "cloud", "one of module, host"},
@@ -445,7 +456,8 @@ const std::map<std::string, std::set<std::string>> kDriverKeyTypes = {
     {"ifname", {"socketcan"}},   {"fd", {"socketcan"}},      {"bitrate", {"socketcan"}},
     {"data_bitrate", {"socketcan"}}, {"max_load", {"socketcan", "serial"}},
     {"device", {"serial"}},      {"baud", {"serial"}},       {"return_delay", {"serial"}},
-    {"turnaround", {"serial"}},
+    {"turnaround", {"serial"}},  {"devices", {"serial"}},    {"torque_constant", {"serial"}},
+    {"sensor_id_offset", {"serial"}}, {"set_operating_mode", {"serial"}},
 };
 }  // namespace
 
@@ -738,4 +750,28 @@ TEST(BadInputs, EveryDaemonKeyWithARowIsInTheReadmeTable) {
     for (const std::string& k : keys)
       if (!(sec.empty() && table.count(k))) documented.insert(sec.empty() ? k : sec + "." + k);
   EXPECT_EQ(missing(documented, paths), "") << "keys in the README's tables without a row";
+}
+
+// Stock X-series servos (driver.devices: x_series) run no module PD: the PD goes to the host,
+// where its stability check applies; their keys are refused on a bus of pedalwave modules.
+TEST(BadInputs, XSeriesServosNeedTheHostPdAndTheirKeysNeedThem) {
+  std::string e = daemon_error("rate_hz: 250\ndriver: {type: serial, devices: x_series}\n");
+  EXPECT_NE(e.find("driver.devices = \"x_series\": expected pd_placement: host with driver.devices: "
+                   "x_series"), std::string::npos) << e;
+  e = daemon_error("rate_hz: 250\ndriver: {type: serial, devices: x_series}\ncontroller: {pd_placement: module}\n");
+  EXPECT_NE(e.find("controller.pd_placement = \"module\": expected pd_placement: host"), std::string::npos) << e;
+  // The paper's K_D = 15 is unstable as a sampled PD at 250 Hz: the controller's check says so.
+  e = daemon_error("rate_hz: 250\ndriver: {type: serial, devices: x_series}\ncontroller: {pd_placement: host}\n");
+  EXPECT_NE(e.find("pd.placement = host is discretely unstable"), std::string::npos) << e;
+  EXPECT_EQ(daemon_error("rate_hz: 250\ndriver: {type: serial, devices: x_series}\n"
+                         "controller: {pd_placement: host, K_D: 0.5}\n"),
+            "(no error)");
+  e = daemon_error("rate_hz: 250\ndriver: {type: serial, torque_constant: 1.5}\n");
+  EXPECT_NE(e.find("driver.torque_constant = \"1.5\": expected no torque_constant without devices: "
+                   "x_series"), std::string::npos) << e;
+  // Their command_timeout is the servos' Bus Watchdog: 1 … 127 × 20 ms.
+  e = daemon_error("rate_hz: 250\ndriver: {type: serial, devices: x_series, command_timeout: 5}\n"
+                   "controller: {pd_placement: host, K_D: 0.5}\n");
+  EXPECT_NE(e.find("driver.command_timeout = \"5\": expected a number in [0.02, 2.54] [s]"),
+            std::string::npos) << e;
 }

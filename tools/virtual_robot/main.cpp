@@ -6,6 +6,7 @@
 //       [--latency ms] [--loss p] [--bit-error p] [--silent J]... [--counter-fault J:repeat]...
 //       [--fault-onset SYNC] [--command-timeout ms] [--seed n] [--h s] [--max-gap s]
 //       [--duration s] [--status s] [--no-faults] [--ignore-host-faults]
+//       [--devices pedalwave|x_series [--torque-constant N·m/A] [--sensor-id-offset n]]
 //
 // The scene's `faults:` are injected inside the modules (vrobot::SimulationPlant: physical faults
 // on the plant, sensor faults on what the modules report, module_silent as a module that stops
@@ -67,6 +68,10 @@ int main(int argc, char** argv) {
   std::uint64_t onset = 1;
   std::uint32_t seed = 1;
   double h = 0.0;
+  // The serial bus's devices: pedalwave modules, or stock X-series servos + deflection sensors.
+  std::string devices = "pedalwave";
+  double torque_constant = 1.78;
+  int sensor_id_offset = 100;
   app.add_option("--scene", scene_path, "scene file (YAML), e.g. config/scenes/flat_high_friction.yaml")
       ->required();
   auto* o_can = app.add_option("--can", can_if, "CAN interface the modules are on (e.g. vcan0, can0)");
@@ -115,11 +120,21 @@ int main(int argc, char** argv) {
   app.add_option("--priority", priority, "SCHED_FIFO priority of the modules' thread (0 = normal "
                  "scheduling; real modules are separate microcontrollers: they never wait for the "
                  "host's CPU)")->check(CLI::Range(0, 99))->capture_default_str();
+  app.add_option("--devices", devices, "with --pty: what sits on the bus — pedalwave modules, or "
+                 "x_series: per joint a stock DYNAMIXEL X-series servo (XM430-W350, ID j) in current "
+                 "control and a deflection sensor (ID j + --sensor-id-offset), drivers/PROTOCOL.md §3.6")
+      ->check(CLI::IsMember({"pedalwave", "x_series"}))->capture_default_str();
+  app.add_option("--torque-constant", torque_constant, "x_series: the servos' output torque per "
+                 "current [N·m/A]")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--sensor-id-offset", sensor_id_offset, "x_series: sensor ID = servo ID + this")
+      ->check(CLI::Range(1, 251))->capture_default_str();
   app.add_option("--cpu", cpu, "pin the modules' thread to this CPU (−1 = no pinning)")
       ->check(CLI::Range(-1, 1023))->capture_default_str();
   if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_virtual_robot")) return *rc;
   if (can_if.empty() && !pty) return bad_input("give the bus: --can IFNAME [--fd] or --pty");
   if (fd && pty) return bad_input("--fd is a CAN option; the serial bus (--pty) has no FD frames");
+  const bool x_series = devices == "x_series";
+  if (x_series && !pty) return bad_input("--devices x_series is a serial bus: give --pty");
 
   pedalwave::model::Scene scene;
   try {
@@ -138,6 +153,15 @@ int main(int argc, char** argv) {
   opt.emulator.command_timeout_ns = static_cast<std::int64_t>(timeout_ms * 1e6);
   opt.emulator.bus = {!no_wire, bitrate, data_bitrate, baud, return_delay_us * 1e-6};
   opt.emulator.joints = joints;
+  if (x_series) {
+    opt.emulator.serial_devices = pd::SerialDevices::kXSeries;
+    opt.emulator.x.torque_constant = torque_constant;
+    opt.emulator.x.sensor_id_offset = sensor_id_offset;
+    if (sensor_id_offset < joints || sensor_id_offset + joints > 252)
+      return bad_input("--sensor-id-offset " + std::to_string(sensor_id_offset) +
+                       ": expected the sensor IDs clear of the servos' 1 … " + std::to_string(joints) +
+                       " and ≤ 252, i.e. " + std::to_string(joints) + " … " + std::to_string(252 - joints));
+  }
   pd::spread_module_clocks(opt.emulator, drift_ppm, seed);
   opt.thread_priority = priority;
   opt.thread_cpu = cpu;
@@ -204,15 +228,26 @@ int main(int argc, char** argv) {
 
   std::printf("virtual robot: scene '%s', %d modules (%s), integrator step %g s\n",
               scene.name.c_str(), joints,
-              pty ? "serial, DYNAMIXEL 2.0" : (fd ? "CAN FD" : "classic CAN"), scene.integrator.h);
+              pty ? (x_series ? "serial, DYNAMIXEL 2.0, stock X-series servos in current control + deflection sensors"
+                              : "serial, DYNAMIXEL 2.0")
+                  : (fd ? "CAN FD" : "classic CAN"),
+              scene.integrator.h);
+  if (x_series)
+    std::printf("x-series: servos XM430-W350 at IDs 1 … %d (shipped in position control), torque "
+                "constant %g N·m/A; sensors at IDs %d … %d\n",
+                joints, torque_constant, 1 + sensor_id_offset, joints + sensor_id_offset);
   if (pty) std::printf("pty: %s%s%s\n", p.slave_path.c_str(), link.empty() ? "" : " (link ", link.empty() ? "" : (link + ")").c_str());
   else std::printf("can: %s\n", can_if.c_str());
   if (no_wire) std::printf("bus: no wire time (answers as fast as the host reads)\n");
   else if (pty) std::printf("bus: %d baud, return delay %g µs, wire time modeled\n", baud, return_delay_us);
   else std::printf("bus: %g Mbit/s%s, wire time modeled\n", bitrate / 1e6,
                    fd ? (", data phase " + std::to_string(data_bitrate / 1e6).substr(0, 4) + " Mbit/s").c_str() : "");
-  std::printf("module clocks: free-running µs counters, rate errors spread over ±%g ppm; command "
-              "lifetime %g ms\n", drift_ppm, timeout_ms);
+  if (x_series)
+    std::printf("stock servos: no module clock (a servo samples when the Bulk Read arrives), no "
+                "command lifetime (a servo holds its Goal Current until told)\n");
+  else
+    std::printf("module clocks: free-running µs counters, rate errors spread over ±%g ppm; command "
+                "lifetime %g ms\n", drift_ppm, timeout_ms);
   {
     std::string applied, skipped;
     for (const pedalwave::model::FaultSpec& sf : robot->plant().faults())

@@ -65,9 +65,14 @@ struct SerialBusSpec {
   double return_delay_s = 20e-6;  // per module: status-packet return delay [s]
   double turnaround_s = 0.0;      // host: per exchange (write→read), e.g. USB latency [s]
   double max_load = 0.8;          // fraction of the period the exchange may occupy [-]
+  // Stock X-series servos + deflection sensors (PROTOCOL.md §3.6): per cycle one Bulk Read
+  // (servo 10 bytes at 126, sensor 2 bytes at 124), 2 status packets and 2 return delays per
+  // joint, one Sync Write of Goal Current; instead of the pedalwave modules' packets.
+  bool x_series = false;
 };
 // Worst-case bytes per cycle on the serial bus for J joints.
 int serial_bytes_per_cycle(int joints) noexcept;
+int xseries_bytes_per_cycle(int joints) noexcept;  // the same on an X-series bus
 BusBudget serial_bus_budget(const SerialBusSpec& spec) noexcept;
 BusBudget check_serial_bus_budget(const SerialBusSpec& spec);
 

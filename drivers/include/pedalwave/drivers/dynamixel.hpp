@@ -238,6 +238,7 @@ inline constexpr std::uint16_t kRegCurrentLimit = 38;      // u16 RW EEPROM [cur
 inline constexpr std::uint16_t kRegTorqueEnable = 64;      // u8  RW
 inline constexpr std::uint16_t kRegStatusReturnLevel = 68; // u8  RW
 inline constexpr std::uint16_t kRegHardwareError = 70;     // u8  R
+inline constexpr std::uint16_t kRegBusWatchdog = 98;       // i8  RW [20 ms], 0 off, −1 = expired
 inline constexpr std::uint16_t kRegGoalCurrent = 102;      // i16 RW [current LSB]
 inline constexpr std::uint16_t kRegPresentCurrent = 126;   // i16 R  [current LSB]
 inline constexpr std::uint16_t kRegPresentVelocity = 128;  // i32 R  [0.229 rev/min]
@@ -255,7 +256,8 @@ inline constexpr double kPositionLsb = 2.0 * 3.14159265358979323846 / 4096.0;   
 // The servo's control table as far as the emulator keeps it (PROTOCOL.md §3.6); other addresses
 // are gaps here.
 inline constexpr std::uint16_t kTableSize = 136;
-inline constexpr std::array<Register, 15> kRegisters = {{
+inline constexpr std::int64_t kBusWatchdogUnitNs = 20'000'000;  // Bus Watchdog LSB [ns]
+inline constexpr std::array<Register, 16> kRegisters = {{
     {0, 2, Access::kR, true, 0, 0xFFFF, "model number"},
     {6, 1, Access::kR, true, 0, 0xFF, "firmware version"},
     {7, 1, Access::kRW, true, 0, 252, "ID"},
@@ -266,6 +268,7 @@ inline constexpr std::array<Register, 15> kRegisters = {{
     {64, 1, Access::kRW, false, 0, 1, "torque enable"},
     {68, 1, Access::kRW, false, 0, 2, "status return level"},
     {70, 1, Access::kR, false, 0, 0xFF, "hardware error status"},
+    {98, 1, Access::kRW, false, 0, 127, "bus watchdog"},
     {102, 2, Access::kRW, false, 0, 0xFFFF, "goal current"},
     {120, 2, Access::kR, false, 0, 0xFFFF, "realtime tick"},
     {126, 2, Access::kR, false, 0, 0xFFFF, "present current"},
@@ -304,3 +307,9 @@ std::int16_t goal_current(double tau, double k_t, double current_lsb, std::uint1
 }  // namespace x
 
 }  // namespace pedalwave::drivers::dxl
+
+namespace pedalwave::drivers {
+// What sits on the serial bus: pedalwave modules (PROTOCOL.md §3.2), or per joint a stock
+// X-series servo in current control (ID j + 1, §3.6) and a deflection sensor (ID j + 1 + offset).
+enum class SerialDevices : std::uint8_t { kPedalwave = 0, kXSeries };
+}  // namespace pedalwave::drivers

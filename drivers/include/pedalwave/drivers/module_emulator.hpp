@@ -104,9 +104,7 @@ struct BusTimingConfig {
   std::int64_t inter_byte_timeout_ns = 1'000'000;
 };
 
-// What sits on the serial bus: pedalwave modules (PROTOCOL.md §3.2), or per joint a stock
-// X-series servo in current control (ID j + 1, §3.6) and a deflection sensor (ID j + 1 + offset).
-enum class SerialDevices : std::uint8_t { kPedalwave = 0, kXSeries };
+// SerialDevices (what sits on the serial bus): dynamixel.hpp.
 struct XSeriesConfig {
   std::uint16_t model = 1020;         // the servos' model number (XM430-W350) [-]
   double torque_constant = 1.78;      // output torque per current [N·m/A] (XM430-W350 at 12 V:

@@ -38,6 +38,8 @@
 
 namespace pedalwave::drivers {
 
+class XSeriesDriver;
+
 struct SerialConfig {
   std::string device = "/dev/ttyUSB0";  // tty for open()
   int baud = 4'000'000;                 // [bit/s], 8N1
@@ -49,6 +51,15 @@ struct SerialConfig {
   std::int64_t write_timeout_ns = 200'000;  // longest write() waits for a full output queue [ns]
   // The modules' command lifetime, written to their register 10 at configuration [s] (1 ms steps)
   double command_timeout_s = 0.5;
+  // What sits on the bus: pedalwave modules, or stock X-series servos in current control with a
+  // deflection sensor per joint (PROTOCOL.md §3.6; the driver then runs XSeriesDriver).
+  SerialDevices devices = SerialDevices::kPedalwave;
+  // X-series only: output torque per current of the servos [N·m/A] (XM430-W350 at 12 V: 1.78),
+  // sensor ID = servo ID + sensor_id_offset, and whether configuration may set the Operating
+  // Mode to current control (0) with torque off (false: a servo in another mode is refused).
+  double torque_constant = 1.78;
+  int sensor_id_offset = 100;
+  bool set_operating_mode = true;
 };
 
 // What configure_modules() found on module j (joint j + 1, ID j + 1).
@@ -72,7 +83,8 @@ int open_serial_port(const std::string& path, int baud);
 
 class SerialDriver final : public Driver {
  public:
-  // Checks the bus budget, opens cfg.device, configure_modules().
+  // Checks the bus budget, opens cfg.device, configure_modules(). With cfg.devices == kXSeries
+  // every call below goes to an XSeriesDriver (xseries_driver.hpp) on the same port.
   static std::unique_ptr<SerialDriver> open(const SerialConfig& cfg);
   // Injected transport (a pty slave, a tty opened elsewhere): takes ownership of fd.
   SerialDriver(int fd, const SerialConfig& cfg);
@@ -87,13 +99,15 @@ class SerialDriver final : public Driver {
   // not answer or disagrees stops it: std::runtime_error naming the module (ID, joint), the
   // register, the value found and the value expected. reply_timeout_ns per try, 3 tries.
   void configure_modules(std::int64_t reply_timeout_ns = 50'000'000);
-  const ModuleIdentity& identity(int j) const { return identity_[static_cast<std::size_t>(j)]; }
+  const ModuleIdentity& identity(int j) const;
+  // The X-series mode's driver (nullptr on a bus of pedalwave modules).
+  XSeriesDriver* x_series() const noexcept { return x_.get(); }
 
   int joints() const override { return joints_; }
   IoStatus read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback& out) override;
   IoStatus write(const Command& cmd) override;
   void safe_stop() override;
-  const DriverCounters& counters() const override { return counters_; }
+  const DriverCounters& counters() const override;
   std::uint8_t sync_counter() const { return counter_; }
   const ModuleClock& clock(int j) const { return clocks_[static_cast<std::size_t>(j)]; }
 
@@ -111,6 +125,7 @@ class SerialDriver final : public Driver {
   void write_registers(int j, std::uint16_t addr, const std::vector<std::uint8_t>& data,
                        std::int64_t timeout_ns);
 
+  std::unique_ptr<XSeriesDriver> x_;    // X-series mode: everything goes there
   int baud_ = 0;
   std::uint8_t return_delay_steps_ = 0;  // return delay to set [2 µs]
   std::uint16_t command_timeout_ms_ = 0; // command lifetime to set [ms]

@@ -1,0 +1,636 @@
+#include "pedalwave/drivers/xseries_driver.hpp"
+
+#include <poll.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <system_error>
+
+#include "pedalwave/drivers/bus_budget.hpp"
+#include "pedalwave/drivers/wire.hpp"
+#include "posix_util.hpp"
+
+namespace pedalwave::drivers {
+
+const char* xseries_model_name(std::uint16_t model) noexcept {
+  switch (model) {
+    case dxl::x::kModelXM430W350: return "XM430-W350";
+    case dxl::x::kModelXM430W210: return "XM430-W210";
+    default: return nullptr;
+  }
+}
+
+double xseries_current_lsb(std::uint16_t model) noexcept {
+  return xseries_model_name(model) ? dxl::x::kCurrentLsbXM430 : 0.0;
+}
+
+namespace {
+const char* error_name(std::uint8_t e) {
+  switch (e & 0x7F) {
+    case dxl::kErrResultFail: return "Result Fail";
+    case dxl::kErrInstruction: return "Instruction Error";
+    case dxl::kErrCrc: return "CRC Error";
+    case dxl::kErrDataRange: return "Data Range Error";
+    case dxl::kErrDataLength: return "Data Length Error";
+    case dxl::kErrDataLimit: return "Data Limit Error";
+    case dxl::kErrAccess: return "Access Error";
+    default: return "unknown error";
+  }
+}
+std::string register_name(bool sensor, std::uint16_t addr) {
+  const dxl::Register* r = dxl::register_at(
+      sensor ? std::span<const dxl::Register>(dxl::x::kSensorRegisters)
+             : std::span<const dxl::Register>(dxl::x::kRegisters),
+      addr);
+  return "register " + std::to_string(addr) + " (" + (r ? r->name : "?") + ")";
+}
+std::string baud_text(int index) {
+  const int b = dxl::baud_of_index(index);
+  return b > 0 ? std::to_string(b) + " baud" : "no rate of the index";
+}
+std::string hw_error_text(std::uint8_t hw) {
+  std::string s;
+  const char* names[8] = {"input voltage", "?", "overheating", "motor encoder", "electrical shock",
+                          "overload", "?", "?"};
+  for (int b = 0; b < 8; ++b)
+    if (hw & (1u << b)) s += std::string(s.empty() ? " (" : ", ") + names[b];
+  return s.empty() ? s : s + ")";
+}
+}  // namespace
+
+XSeriesDriver::XSeriesDriver(int fd, const SerialConfig& cfg)
+    : fd_(fd), joints_(cfg.joints), baud_(cfg.baud), sensor_offset_(cfg.sensor_id_offset),
+      k_t_(cfg.torque_constant), set_mode_(cfg.set_operating_mode),
+      write_timeout_ns_(cfg.write_timeout_ns) {
+  try {
+    if (fd < 0)
+      throw std::invalid_argument("X-series driver: fd = " + std::to_string(fd) +
+                                  ", expected an open tty");
+    if (joints_ < 1 || joints_ > kMaxJoints)
+      throw std::invalid_argument("X-series driver: joints = " + std::to_string(joints_) +
+                                  ", expected 1 … " + std::to_string(kMaxJoints));
+    if (sensor_offset_ < joints_ || sensor_offset_ + joints_ > 252)
+      throw std::invalid_argument(
+          "X-series driver: sensor_id_offset = " + std::to_string(sensor_offset_) +
+          ", expected the sensor IDs (servo ID + offset) clear of the servos' IDs 1 … " +
+          std::to_string(joints_) + " and ≤ 252: " + std::to_string(joints_) + " … " +
+          std::to_string(252 - joints_));
+    if (!(k_t_ > 0) || !std::isfinite(k_t_))
+      throw std::invalid_argument("X-series driver: torque_constant = " + std::to_string(k_t_) +
+                                  " N·m/A, expected > 0 (XM430-W350 at 12 V: 1.78)");
+    const double steps = std::round(cfg.return_delay_s / 2e-6);
+    if (!(steps >= 0 && steps <= 254))
+      throw std::invalid_argument("X-series driver: return_delay = " +
+                                  std::to_string(cfg.return_delay_s) +
+                                  " s, expected 0 … 508e-6 s (register 9: 0 … 254 × 2 µs)");
+    return_delay_steps_ = static_cast<std::uint8_t>(steps);
+    const double wd = std::ceil(cfg.command_timeout_s / 0.02 - 1e-9);
+    if (!(wd >= 1 && wd <= 127))
+      throw std::invalid_argument("X-series driver: command_timeout = " +
+                                  std::to_string(cfg.command_timeout_s) +
+                                  " s, expected 0.02 … 2.54 s (the servos' Bus Watchdog, register "
+                                  "98: 1 … 127 × 20 ms)");
+    watchdog_steps_ = static_cast<std::uint8_t>(wd);
+    SerialBusSpec spec{cfg.joints, cfg.period_s, cfg.baud, cfg.return_delay_s, cfg.turnaround_s,
+                       cfg.max_load};
+    spec.x_series = true;
+    check_serial_bus_budget(spec);
+    if (!detail::set_nonblocking(fd))
+      throw std::system_error(errno, std::generic_category(), "X-series driver: O_NONBLOCK");
+    // The Bulk Read never changes: per joint (servo, 126, 10), (sensor, 124, 2).
+    std::array<std::uint8_t, 10 * kMaxJoints> prm{};
+    for (int j = 0; j < joints_; ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      ids_[ju] = static_cast<std::uint8_t>(j + 1);
+      ids_[static_cast<std::size_t>(joints_) + ju] = static_cast<std::uint8_t>(j + 1 + sensor_offset_);
+      std::uint8_t* p = prm.data() + 10 * ju;
+      p[0] = ids_[ju];
+      wire::put_u16(p + 1, dxl::x::kFeedbackAddress);
+      wire::put_u16(p + 3, static_cast<std::uint16_t>(dxl::x::kFeedbackSize));
+      p[5] = ids_[static_cast<std::size_t>(joints_) + ju];
+      wire::put_u16(p + 6, dxl::x::kRegSensorDeflection);
+      wire::put_u16(p + 8, 2);
+      lsb_[ju] = dxl::x::kCurrentLsbXM430;
+      identity_[ju].current_limit = 1193;
+    }
+    if (dxl::build_instruction(dxl::kBroadcastId, dxl::kInstBulkRead,
+                               std::span<const std::uint8_t>(prm.data(), 10 * static_cast<std::size_t>(joints_)),
+                               bulk_tx_, bulk_len_) != dxl::DxlStatus::kOk)
+      throw std::invalid_argument("X-series driver: cannot build the Bulk Read packet");
+    bulk_wire_ns_ = wire_ns(bulk_len_);
+    min_reply_ns_ = wire_ns(dxl::kHeaderSize + 4 + 2);  // the shortest answer: the sensor's
+  } catch (...) {
+    if (fd >= 0) ::close(fd);
+    fd_ = -1;
+    throw;
+  }
+}
+
+XSeriesDriver::~XSeriesDriver() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+std::int64_t XSeriesDriver::wire_ns(std::size_t bytes) const noexcept {
+  return std::llround(static_cast<double>(bytes) * 10.0 * 1e9 / baud_);
+}
+
+std::string XSeriesDriver::name(int j, bool sensor) const {
+  return std::string("serial bus (X-series): ") +
+         (sensor ? "deflection sensor ID " + std::to_string(j + 1 + sensor_offset_)
+                 : "servo ID " + std::to_string(j + 1)) +
+         " (joint " + std::to_string(j + 1) + ")";
+}
+
+// ---- Configuration -------------------------------------------------------------------------------
+bool XSeriesDriver::transact(const std::uint8_t* p, std::size_t n, std::uint8_t id,
+                             std::size_t params, std::int64_t timeout_ns) {
+  std::uint8_t junk[256];
+  while (::read(fd_, junk, sizeof junk) > 0) {
+  }
+  rx_len_ = 0;
+  const std::int64_t until = detail::monotonic_ns() + timeout_ns;
+  if (!write_all(p, n, until)) return false;
+  for (;;) {
+    std::size_t pos = 0;
+    while (pos < rx_len_) {
+      std::size_t used = 0;
+      const dxl::DxlStatus s = dxl::parse_packet(
+          std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
+      if (s == dxl::DxlStatus::kNeedMore) break;
+      pos += used;
+      // A status packet of `id` with the expected parameter count (or an error): a late answer
+      // to an earlier try of another request has another length, and is skipped.
+      if (s == dxl::DxlStatus::kOk && pkt_.instruction == dxl::kInstStatus && pkt_.id == id &&
+          (pkt_.param_count == params || (pkt_.error & 0x7F) != 0)) {
+        rx_len_ = 0;
+        return true;
+      }
+    }
+    std::memmove(rx_.data(), rx_.data() + pos, rx_len_ - pos);
+    rx_len_ -= pos;
+    const std::int64_t left = until - detail::monotonic_ns();
+    if (left <= 0) return false;
+    pollfd pf{fd_, POLLIN, 0};
+    const timespec ts = detail::to_timespec(left);
+    if (::ppoll(&pf, 1, &ts, nullptr) > 0) {
+      const ssize_t r = ::read(fd_, rx_.data() + rx_len_, rx_.size() - rx_len_);
+      if (r > 0) rx_len_ += static_cast<std::size_t>(r);
+    }
+  }
+}
+
+std::vector<std::uint8_t> XSeriesDriver::read_registers(int j, bool sensor, std::uint16_t addr,
+                                                        std::uint16_t len, std::int64_t timeout_ns) {
+  const auto id = static_cast<std::uint8_t>(j + 1 + (sensor ? sensor_offset_ : 0));
+  std::size_t n = 0;
+  dxl::build_read(id, addr, len, std::span<std::uint8_t>(tx_.data(), dxl::kMaxPacket), n);
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    if (!transact(tx_.data(), n, id, len, timeout_ns)) continue;
+    if ((pkt_.error & 0x7F) != 0)
+      throw std::runtime_error(name(j, sensor) + ": Read of " + register_name(sensor, addr) + ", " +
+                               std::to_string(len) + " bytes, answered error " +
+                               std::to_string(pkt_.error & 0x7F) + " (" + error_name(pkt_.error) +
+                               "), expected its value");
+    if (pkt_.param_count != len)
+      throw std::runtime_error(name(j, sensor) + ": Read of " + register_name(sensor, addr) +
+                               " answered " + std::to_string(pkt_.param_count) +
+                               " bytes, expected " + std::to_string(len));
+    return {pkt_.params.begin(), pkt_.params.begin() + static_cast<std::ptrdiff_t>(len)};
+  }
+  throw std::runtime_error(name(j, sensor) + ": no answer to a Read of " +
+                           register_name(sensor, addr) + " in 3 tries of " +
+                           std::to_string(timeout_ns / 1'000'000) +
+                           " ms, expected its status packet (is it powered, on this bus, at " +
+                           std::to_string(baud_) + " baud, with ID " + std::to_string(id) +
+                           " and status return level ≥ 1?)");
+}
+
+void XSeriesDriver::write_registers(int j, bool sensor, std::uint16_t addr,
+                                    const std::vector<std::uint8_t>& data, std::int64_t timeout_ns) {
+  const auto id = static_cast<std::uint8_t>(j + 1 + (sensor ? sensor_offset_ : 0));
+  std::size_t n = 0;
+  dxl::build_write(id, addr, data, std::span<std::uint8_t>(tx_.data(), dxl::kMaxPacket), n);
+  if (transact(tx_.data(), n, id, 0, timeout_ns) && (pkt_.error & 0x7F) != 0)
+    throw std::runtime_error(name(j, sensor) + ": Write of " + register_name(sensor, addr) +
+                             " answered error " + std::to_string(pkt_.error & 0x7F) + " (" +
+                             error_name(pkt_.error) + "), expected 0");
+  const std::vector<std::uint8_t> back =
+      read_registers(j, sensor, addr, static_cast<std::uint16_t>(data.size()), timeout_ns);
+  for (std::size_t k = 0; k < data.size(); ++k) {
+    if (back[k] == data[k]) continue;
+    throw std::runtime_error(name(j, sensor) + ": " +
+                             register_name(sensor, static_cast<std::uint16_t>(addr + k)) + " = " +
+                             std::to_string(back[k]) + " after writing it, expected " +
+                             std::to_string(data[k]));
+  }
+}
+
+void XSeriesDriver::configure(std::int64_t reply_timeout_ns) {
+  const int want_baud = dxl::baud_index(baud_);
+  if (want_baud < 0)
+    throw std::invalid_argument("serial bus (X-series): driver.baud = " + std::to_string(baud_) +
+                                " has no value in the servos' register 8 (baud rate), expected "
+                                "one of 9600, 57600, 115200, 1000000, 2000000, 3000000, 4000000");
+  auto check_id_baud = [&](int j, bool sensor, std::uint8_t id, std::uint8_t baud) {
+    const int want_id = j + 1 + (sensor ? sensor_offset_ : 0);
+    if (id != want_id)
+      throw std::runtime_error(name(j, sensor) + ": " + register_name(sensor, dxl::x::kRegId) +
+                               " = " + std::to_string(id) + ", expected " + std::to_string(want_id));
+    if (baud != want_baud)
+      throw std::runtime_error(name(j, sensor) + ": " + register_name(sensor, dxl::x::kRegBaud) +
+                               " = " + std::to_string(baud) + " (" + baud_text(baud) +
+                               "), expected " + std::to_string(want_baud) + " (" +
+                               baud_text(want_baud) + ", driver.baud)");
+  };
+  auto check_hw = [&](int j, bool sensor) {
+    const std::uint8_t hw =
+        read_registers(j, sensor, dxl::x::kRegHardwareError, 1, reply_timeout_ns)[0];
+    if (hw != 0)
+      throw std::runtime_error(name(j, sensor) + ": " +
+                               register_name(sensor, dxl::x::kRegHardwareError) + " = " +
+                               std::to_string(hw) + hw_error_text(hw) +
+                               ", expected 0 (a Reboot clears it once the cause is gone)");
+  };
+  for (int j = 0; j < joints_; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    XSeriesIdentity& who = identity_[ju];
+    // The servo: model, firmware, ID, baud, Operating Mode in one Read of 0 … 11.
+    const std::vector<std::uint8_t> t = read_registers(j, false, 0, 12, reply_timeout_ns);
+    who.model = wire::get_u16(t.data() + dxl::x::kRegModelNumber);
+    who.firmware = t[dxl::x::kRegFirmware];
+    who.operating_mode = t[dxl::x::kRegOperatingMode];
+    if (xseries_model_name(who.model) == nullptr)
+      throw std::runtime_error(name(j, false) + ": " + register_name(false, 0) + " = " +
+                               std::to_string(who.model) + ", expected " +
+                               std::to_string(dxl::x::kModelXM430W350) + " (XM430-W350) or " +
+                               std::to_string(dxl::x::kModelXM430W210) +
+                               " (XM430-W210): a servo whose current control and Goal Current "
+                               "unit (2.69 mA) the driver knows");
+    lsb_[ju] = xseries_current_lsb(who.model);
+    check_id_baud(j, false, t[dxl::x::kRegId], t[dxl::x::kRegBaud]);
+    check_hw(j, false);
+    // Torque off (the EEPROM area is written only so), then current control and return delay.
+    write_registers(j, false, dxl::x::kRegTorqueEnable, {0}, reply_timeout_ns);
+    torque_on_[ju] = false;
+    if (who.operating_mode != dxl::x::kOperatingModeCurrent) {
+      if (!set_mode_)
+        throw std::runtime_error(
+            name(j, false) + ": " + register_name(false, dxl::x::kRegOperatingMode) + " = " +
+            std::to_string(who.operating_mode) + ", expected 0 (current control; " +
+            "driver.set_operating_mode: false, so the driver does not change it)");
+      write_registers(j, false, dxl::x::kRegOperatingMode, {dxl::x::kOperatingModeCurrent},
+                      reply_timeout_ns);
+    }
+    write_registers(j, false, dxl::x::kRegReturnDelay, {return_delay_steps_}, reply_timeout_ns);
+    const std::vector<std::uint8_t> lim =
+        read_registers(j, false, dxl::x::kRegCurrentLimit, 2, reply_timeout_ns);
+    who.current_limit = wire::get_u16(lim.data());
+    if (who.current_limit == 0)
+      throw std::runtime_error(name(j, false) + ": " +
+                               register_name(false, dxl::x::kRegCurrentLimit) +
+                               " = 0, expected > 0 (the servo could deliver no torque)");
+    // Bus Watchdog (98): a servo that hears nothing for command_timeout stops by itself (a
+    // stock servo otherwise holds its Goal Current when the host is gone). An expired one (−1) is
+    // cleared first (0), which also makes its goal writable again.
+    write_registers(j, false, dxl::x::kRegBusWatchdog, {0}, reply_timeout_ns);
+    write_registers(j, false, dxl::x::kRegGoalCurrent, {0, 0}, reply_timeout_ns);
+    write_registers(j, false, dxl::x::kRegBusWatchdog, {watchdog_steps_}, reply_timeout_ns);
+    goal_[ju] = 0;
+    // The sensor: model, firmware, ID, baud in one Read of 0 … 8; its errors; its return delay.
+    const std::vector<std::uint8_t> s = read_registers(j, true, 0, 9, reply_timeout_ns);
+    who.sensor_model = wire::get_u16(s.data());
+    who.sensor_firmware = s[2];
+    if (who.sensor_model != dxl::x::kSensorModelNumber)
+      throw std::runtime_error(name(j, true) + ": " + register_name(true, 0) + " = " +
+                               std::to_string(who.sensor_model) + ", expected " +
+                               std::to_string(dxl::x::kSensorModelNumber) +
+                               " (0x5053, a pedalwave deflection sensor)");
+    check_id_baud(j, true, s[dxl::x::kRegId], s[dxl::x::kRegBaud]);
+    check_hw(j, true);
+    write_registers(j, true, dxl::x::kRegReturnDelay, {return_delay_steps_}, reply_timeout_ns);
+  }
+  rx_len_ = 0;
+}
+
+// ---- Cycle -----------------------------------------------------------------------------------------
+bool XSeriesDriver::write_all(const std::uint8_t* p, std::size_t n, std::int64_t until_ns) noexcept {
+  std::size_t done = 0;
+  while (done < n) {
+    const ssize_t r = ::write(fd_, p + done, n - done);
+    if (r > 0) {
+      done += static_cast<std::size_t>(r);
+      continue;
+    }
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK) return false;
+    const std::int64_t remaining = until_ns - detail::monotonic_ns();
+    if (remaining <= 0) return false;
+    pollfd pf{fd_, POLLOUT, 0};
+    const timespec ts = detail::to_timespec(remaining);
+    if (::ppoll(&pf, 1, &ts, nullptr) <= 0) return false;
+  }
+  return true;
+}
+
+XSeriesDriver::Dev XSeriesDriver::device_of(std::uint8_t id, int& j) const noexcept {
+  if (id >= 1 && id <= joints_) {
+    j = id - 1;
+    return Dev::kServo;
+  }
+  if (id > sensor_offset_ && id <= sensor_offset_ + joints_) {
+    j = id - 1 - sensor_offset_;
+    return Dev::kSensor;
+  }
+  return Dev::kNone;
+}
+
+void XSeriesDriver::receive(std::int64_t stamp_ns, bool before_request) noexcept {
+  bool got = false;
+  for (;;) {
+    if (rx_len_ == rx_.size()) {
+      ++counters_.malformed;
+      rx_len_ = 0;
+    }
+    const ssize_t r = ::read(fd_, rx_.data() + rx_len_, rx_.size() - rx_len_);
+    if (r > 0) {
+      rx_len_ += static_cast<std::size_t>(r);
+      got = true;
+      continue;
+    }
+    if (r < 0 && errno == EINTR) continue;
+    break;
+  }
+  if (got) silence_.on_rx(stamp_ns, counters_);
+  std::size_t pos = 0;
+  while (pos < rx_len_) {
+    std::size_t used = 0;
+    const dxl::DxlStatus s = dxl::parse_packet(
+        std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
+    if (s == dxl::DxlStatus::kNeedMore) break;
+    pos += used;
+    if (s == dxl::DxlStatus::kGarbage) {
+      if (!garbage_run_) ++counters_.malformed;
+      garbage_run_ = true;
+      continue;
+    }
+    garbage_run_ = false;
+    ++counters_.frames_rx;
+    if (s == dxl::DxlStatus::kOk) {
+      handle_status(pkt_, stamp_ns, before_request);
+    } else if (s == dxl::DxlStatus::kChecksum) {
+      ++counters_.checksum;
+      int j = 0;
+      if (device_of(pkt_.id, j) != Dev::kNone) status_[static_cast<std::size_t>(j)] |= kStatusChecksum;
+    } else {
+      ++counters_.malformed;
+    }
+  }
+  if (pos > 0) {
+    std::memmove(rx_.data(), rx_.data() + pos, rx_len_ - pos);
+    rx_len_ -= pos;
+  }
+}
+
+void XSeriesDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns,
+                                  bool before_request) noexcept {
+  int j = 0;
+  const Dev dev = p.instruction == dxl::kInstStatus ? device_of(p.id, j) : Dev::kNone;
+  if (dev == Dev::kNone) {
+    ++counters_.malformed;
+    return;
+  }
+  const auto ju = static_cast<std::size_t>(j);
+  const std::uint8_t err = p.error & 0x7F;
+  if (err != 0) {
+    if (err == dxl::kErrCrc) {
+      ++counters_.checksum;
+      status_[ju] |= kStatusChecksum;
+    } else {
+      ++counters_.malformed;
+    }
+    return;
+  }
+  const bool servo = dev == Dev::kServo;
+  if (p.param_count != (servo ? dxl::x::kFeedbackSize : 2u)) {
+    ++counters_.malformed;
+    return;
+  }
+  // A status packet carries no cycle counter: what was waiting before the request answers an
+  // older Bulk Read — taken as the previous one's (kept for a joint without a fresh answer) —, what
+  // comes after the deadline is late (read at the next cycle's start is too late now: dropped);
+  // a second answer of a device in one cycle means the first one was an older Bulk Read's
+  // (late), and the newer one is kept.
+  // An answer received before this request's last byte could have crossed the line and a status
+  // packet come back is no answer to it either: an older one, delivered late (a loaded host).
+  const bool older = before_request || stamp_ns < sample_ns_ + min_reply_ns_;
+  if (older || stamp_ns > deadline_ns_) {
+    ++counters_.late;
+    status_[ju] |= kStatusLate;
+    if (older && servo) {
+      dxl::x::decode_servo_feedback(p.params.data(), lsb_[ju], late_servo_[ju]);
+      late_servo_got_[ju] = true;
+    } else if (older) {
+      late_sensor_[ju] = wire::get_i16(p.params.data()) * wire::kDeflectionLsb;
+      late_sensor_got_[ju] = true;
+    }
+    return;
+  }
+  bool& got = servo ? got_servo_[ju] : got_sensor_[ju];
+  if (got) {
+    ++counters_.late;
+    status_[ju] |= kStatusLate;
+  } else {
+    ++fresh_packets_;
+  }
+  got = true;
+  if (stamp_ns > stamp_ns_) stamp_ns_ = stamp_ns;
+  if (servo) {
+    dxl::x::decode_servo_feedback(p.params.data(), lsb_[ju], servo_[ju]);
+    // The alert bit: a Hardware Error Status ≠ 0, and an X-series servo then holds torque off.
+    alert_[ju] = static_cast<std::uint16_t>(
+        (alert_[ju] & ~kStatusTorqueOff) | ((p.error & dxl::kErrAlert) ? kStatusTorqueOff : 0));
+  } else {
+    sensor_[ju] = wire::get_i16(p.params.data()) * wire::kDeflectionLsb;
+    alert_[ju] = static_cast<std::uint16_t>(
+        (alert_[ju] & ~kStatusEncoderFault) |
+        ((p.error & dxl::kErrAlert) ? kStatusEncoderFault : 0));
+  }
+}
+
+IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, Feedback& out) {
+  ++cycle_;
+  for (int j = 0; j < joints_; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    status_[ju] = 0;
+    got_servo_[ju] = got_sensor_[ju] = false;
+    late_servo_got_[ju] = late_sensor_got_[ju] = false;
+  }
+  fresh_packets_ = 0;
+  stamp_ns_ = 0;
+  deadline_ns_ = deadline_ns;
+
+  // 1. What is already here answers older Bulk Reads. A packet still incomplete is a short read.
+  receive(detail::monotonic_ns(), true);
+  if (rx_len_ > 0) {
+    ++counters_.malformed;
+    rx_len_ = 0;
+    garbage_run_ = false;
+  }
+
+  // 2. The Bulk Read: every servo and sensor samples when it has arrived.
+  const std::int64_t t0 = detail::monotonic_ns();
+  prev_sample_ns_ = sample_ns_;
+  prev_applied_seq_ = sample_applied_seq_;
+  prev_applied_ns_ = sample_applied_ns_;
+  sample_ns_ = t0 + bulk_wire_ns_;
+  sample_applied_seq_ = applied_seq_;
+  sample_applied_ns_ = applied_ns_;
+  const bool sent = write_all(bulk_tx_.data(), bulk_len_, deadline_ns);
+  if (sent) {
+    ++counters_.frames_tx;
+  } else {
+    ++counters_.tx_dropped;
+  }
+
+  // 3. Gather the 2J status packets until the deadline.
+  const int want = 2 * joints_;
+  while (sent && fresh_packets_ < want) {
+    const std::int64_t remaining = deadline_ns - detail::monotonic_ns();
+    if (remaining <= 0) break;
+    pollfd pf{fd_, POLLIN, 0};
+    const timespec ts = detail::to_timespec(remaining);
+    const int r = ::ppoll(&pf, 1, &ts, nullptr);
+    if (r < 0 && errno != EINTR) break;
+    if (r > 0) {
+      if (pf.revents & (POLLERR | POLLNVAL)) break;
+      receive(detail::monotonic_ns(), false);
+      if ((pf.revents & POLLHUP) && !(pf.revents & POLLIN)) break;
+    }
+  }
+
+  out.joints = joints_;
+  out.seq = cycle_;
+  out.stamp_ns = fresh_packets_ > 0 ? stamp_ns_ : detail::monotonic_ns();
+  out.timing = FeedbackTiming::kModule;
+  int fresh = 0, late_used = 0;
+  for (int j = 0; j < joints_; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    std::uint16_t st = status_[ju];
+    out.late_applied_ns[ju] = 0;
+    if (got_servo_[ju] && got_sensor_[ju]) {
+      beta_[ju] = servo_[ju].position;
+      beta_dot_[ju] = servo_[ju].velocity;
+      deflection_[ju] = sensor_[ju];
+      have_sample_[ju] = true;
+      out.sample_ns[ju] = sample_ns_;
+      out.applied_seq[ju] = applied_seq_;
+      out.applied_ns[ju] = applied_seq_ == kNoCommandSeq ? 0 : applied_ns_[ju];
+      handed_ns_[ju] = sample_ns_;
+      ++fresh;
+    } else if (late_servo_got_[ju] && late_sensor_got_[ju] && prev_sample_ns_ > handed_ns_[ju]) {
+      // No fresh answer, but the previous Bulk Read's came late: an older sample, at its time.
+      beta_[ju] = late_servo_[ju].position;
+      beta_dot_[ju] = late_servo_[ju].velocity;
+      deflection_[ju] = late_sensor_[ju];
+      have_sample_[ju] = true;
+      out.sample_ns[ju] = prev_sample_ns_;
+      out.applied_seq[ju] = prev_applied_seq_;
+      out.applied_ns[ju] = prev_applied_seq_ == kNoCommandSeq ? 0 : prev_applied_ns_[ju];
+      handed_ns_[ju] = prev_sample_ns_;
+      ++counters_.late_used;
+      ++late_used;
+    } else {
+      st |= kStatusMissing;
+      ++counters_.missing;
+      out.sample_ns[ju] = 0;
+    }
+    if (!torque_on_[ju]) st |= kStatusTorqueOff;
+    if (goal_flags_[ju] & wire::kQuantClamped) st |= kStatusSaturated;
+    out.beta[ju] = beta_[ju];
+    out.beta_dot[ju] = beta_dot_[ju];
+    out.deflection[ju] = deflection_[ju];
+    out.status[ju] = static_cast<std::uint16_t>(st | alert_[ju]);
+  }
+  if (!sent) return IoStatus::kBusError;
+  if (fresh + late_used == 0) return IoStatus::kTimeout;
+  if (fresh + late_used < joints_) return IoStatus::kPartial;
+  return IoStatus::kOk;
+}
+
+bool XSeriesDriver::send(const Command* cmd, std::int64_t until_ns) noexcept {
+  const auto count = static_cast<std::size_t>(joints_);
+  std::array<bool, kMaxJoints> on{};
+  for (int j = 0; j < joints_; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    std::uint8_t flags = 0;
+    std::int16_t g = 0;
+    on[ju] = cmd != nullptr && !cmd->torque_off && j < cmd->joints;
+    if (on[ju]) {
+      // The module law, on the host, from the sample handed out last (PROTOCOL.md §3.6).
+      double u = cmd->tau[ju];
+      if (cmd->kp[ju] != 0.0 || cmd->kd[ju] != 0.0) {
+        u += cmd->kp[ju] * (cmd->beta_ref[ju] - beta_[ju]) +
+             cmd->kd[ju] * (cmd->beta_dot_ref[ju] - beta_dot_[ju]);
+        if (!have_sample_[ju]) u = std::nan("");  // no sample yet: no law to evaluate
+      }
+      g = dxl::x::goal_current(u, k_t_, lsb_[ju], identity_[ju].current_limit, flags);
+      if (flags & wire::kQuantNotFinite) on[ju] = false;  // NaN/Inf: torque off, as a module
+    }
+    goal_flags_[ju] = flags;
+    wire::put_i16(data_.data() + 2 * ju, on[ju] ? g : std::int16_t{0});
+  }
+  // Goal Current to every servo, then Torque Enable where it changes.
+  std::size_t n = 0, first = 0;
+  if (dxl::build_sync_write(dxl::x::kRegGoalCurrent, 2, std::span<const std::uint8_t>(ids_.data(), count),
+                            std::span<const std::uint8_t>(data_.data(), 2 * count),
+                            std::span<std::uint8_t>(tx_.data(), dxl::kMaxPacket), first) != dxl::DxlStatus::kOk)
+    return false;
+  n = first;
+  for (int value = 0; value <= 1; ++value) {
+    std::size_t k = 0;
+    for (int j = 0; j < joints_; ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      if (on[ju] == (value == 1) && (torque_on_[ju] != on[ju] || cmd == nullptr))
+        sel_ids_[k++] = ids_[ju];  // safe_stop(): Torque Enable 0 to every servo, whatever it was
+    }
+    if (k == 0) continue;
+    std::array<std::uint8_t, kMaxJoints> v{};
+    v.fill(static_cast<std::uint8_t>(value));
+    std::size_t m = 0;
+    if (dxl::build_sync_write(dxl::x::kRegTorqueEnable, 1,
+                              std::span<const std::uint8_t>(sel_ids_.data(), k),
+                              std::span<const std::uint8_t>(v.data(), k),
+                              std::span<std::uint8_t>(tx_.data() + n, tx_.size() - n), m) != dxl::DxlStatus::kOk)
+      return false;
+    n += m;
+  }
+  const std::int64_t t0 = detail::monotonic_ns();
+  if (!write_all(tx_.data(), n, until_ns)) {
+    ++counters_.tx_dropped;
+    return false;
+  }
+  counters_.frames_tx += n > first ? 2 : 1;
+  for (int j = 0; j < joints_; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    // A goal acts when its Sync Write has arrived; a torque switch when the whole buffer has.
+    applied_ns_[ju] = t0 + wire_ns(torque_on_[ju] != on[ju] ? n : first);
+    torque_on_[ju] = on[ju];
+    goal_[ju] = on[ju] ? wire::get_i16(data_.data() + 2 * ju) : std::int16_t{0};
+  }
+  return true;
+}
+
+IoStatus XSeriesDriver::write(const Command& cmd) {
+  if (!send(&cmd, detail::monotonic_ns() + write_timeout_ns_)) return IoStatus::kBusError;
+  applied_seq_ = cmd.seq;
+  return IoStatus::kOk;
+}
+
+void XSeriesDriver::safe_stop() {
+  if (send(nullptr, detail::monotonic_ns() + 20'000'000)) applied_seq_ = kNoCommandSeq;
+}
+
+}  // namespace pedalwave::drivers

@@ -306,8 +306,8 @@ void SocketCanDriver::handle_feedback_fd(const canfd_frame& f, std::int64_t stam
 void SocketCanDriver::take_feedback(int j, const can::ModuleFeedback& fb,
                                     const wire::ModuleTiming* t, std::int64_t stamp_ns) noexcept {
   const auto ju = static_cast<std::size_t>(j);
-  const unsigned modulus = fd_mode_ ? 256u : 16u;
-  const std::uint64_t answered = track_[ju].take(fb.counter, modulus, cycle_);
+  // The echo is 4 bits on both CAN frame sets (the FD feedback keeps the classic layout's byte 6).
+  const std::uint64_t answered = track_[ju].take(fb.counter, 16, cycle_);
   FrameAge age = classify_frame(rc_[ju], fb.counter, sync_counter_, cycle_, 16);
   if (age == FrameAge::kFresh && stamp_ns > deadline_ns_) {
     // The answer to this SYNC, but received after the cycle's deadline: not used.
@@ -424,7 +424,7 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
     std::uint16_t st = status_[ju];
     out.sample_ns[ju] = 0;
     out.late_applied_ns[ju] = 0;
-    const unsigned modulus = fd_mode_ ? 256u : 16u;
+    const unsigned modulus = fd_mode_ ? 256u : 16u;  // of the applied tag (the echo: 16 on both)
     ModuleClock& clk = clocks_[ju];
     const LateSample& late = late_[ju];
     // A late record (its values not used) tells when the module applied which command; only

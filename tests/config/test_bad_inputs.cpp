@@ -356,6 +356,8 @@ const std::vector<KeyRow> kDaemonKeys = {
     {"telemetry.namespace", kSimDriver + "telemetry:\n  namespace: @\n", "/lab/snake_1", "snake1", "/a//b", "a ROS 2 namespace"},
     {"telemetry.stamp_clock", kSimDriver + "telemetry:\n  stamp_clock: @\n", "monotonic", "utc", "7", "one of realtime, monotonic"},
     {"telemetry.localhost_only", kSimDriver + "telemetry:\n  localhost_only: @\n", "true", "x", "", ""},
+    {"telemetry.record", kSimDriver + "telemetry:\n  record: @\n", "/tmp/run-{time}.mcap", "[1]", "out.txt",
+     "a file name ending in .mcap"},
     {"telemetry.standard_topics", kSimDriver + "telemetry:\n  standard_topics: @\n", "false", "x", "", ""},
     {"telemetry.omega_max", kSimDriver + "telemetry:\n  omega_max: @\n", "6", "x", "1e300", "a number in (0, 100] [rad/s]"},
     {"security.enable", kSimDriver + "security:\n  enable: @\n", "false", "x", "", ""},

@@ -51,7 +51,8 @@ TEST(Recording, EveryTopicWithItsTypeQosAndSchema) {
   telemetry::TelemetrySubscriber sub(monitor(lease.id()));
   std::map<std::string, telemetry::TopicInfo> by_name;
   for (const auto& t : sub.topics()) by_name[t.topic] = t;
-  ASSERT_EQ(by_name.size(), 13u);
+  ASSERT_EQ(by_name.size(), 14u);
+  EXPECT_EQ(by_name.at("/pedalwave/emergency_stop").type, "pedalwave/msg/OperatorCommand");
   const auto& js = by_name.at("/snake1/joint_states");
   EXPECT_EQ(js.type, "sensor_msgs/msg/JointState");
   EXPECT_TRUE(js.reliable);

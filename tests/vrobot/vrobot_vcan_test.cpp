@@ -481,9 +481,10 @@ test::WalkSetup vm_deployment(double duration, std::uint32_t domain) {
   s.plant_max_step = 2.5e-4;
   s.cpu = 0;
   // PEDALWAVE_VM_PLOTS=DIR: the daemon's --plots of each walk (cycles.csv with the residuals) in
-  // DIR/<domain>, on the folder the VM shares with the host (debugging these tests).
+  // DIR/<domain>-<walk>, on the folder the VM shares with the host (debugging these tests).
   if (const char* dir = std::getenv("PEDALWAVE_VM_PLOTS"); dir != nullptr && *dir != '\0') {
-    s.plots_dir = std::string(dir) + "/" + std::to_string(domain);
+    static int walks = 0;  // one folder per walk (the tests share a domain)
+    s.plots_dir = std::string(dir) + "/" + std::to_string(domain) + "-" + std::to_string(++walks);
     std::filesystem::create_directories(s.plots_dir);
   }
   return s;

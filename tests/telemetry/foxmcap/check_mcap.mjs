@@ -36,6 +36,7 @@ const expected = {
   "/demo/pedalwave/fault_event": ["pedalwave/msg/FaultEvent", "reliable", "transient_local"],
   "/demo/pedalwave/robot_description": ["pedalwave/msg/RobotDescription", "reliable", "transient_local"],
   "/pedalwave/command": ["pedalwave/msg/OperatorCommand", "reliable", "volatile"],
+  "/pedalwave/emergency_stop": ["pedalwave/msg/OperatorCommand", "reliable", "volatile"],
   "/pedalwave/command_ack": ["pedalwave/msg/CommandAck", "reliable", "volatile"],
   "/demo/robot_description": ["std_msgs/msg/String", "reliable", "transient_local"],
   "/demo/joint_states": ["sensor_msgs/msg/JointState", "reliable", "volatile"],

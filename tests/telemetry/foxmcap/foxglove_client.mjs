@@ -67,7 +67,7 @@ client.on("message", ({ subscriptionId, timestamp, data }) => {
 
 for (let i = 0; i < 100 && (serverInfo === null || channels.size === 0); ++i) await sleep(20);
 check(serverInfo !== null, "no serverInfo");
-check(channels.size === 13, `${channels.size} channels advertised, expected 13`);
+check(channels.size === 14, `${channels.size} channels advertised, expected 14`);
 for (const c of channels.values()) {
   check(c.encoding === "cdr" && c.schemaEncoding === "ros2msg" && c.schema.length > 0,
         `${c.topic}: encoding ${c.encoding}, schema ${c.schemaName} ${c.schemaEncoding}`);

@@ -237,6 +237,24 @@ void read_realtime(const Reader& r, DaemonConfig& c) {
   rc.auto_start = r.boolean("auto_start", true);
 }
 
+// CALIBRATING before READY: the deflection sensors zeroed at rest (runtime.hpp CalibrationConfig).
+void read_calibration(const Reader& r, DaemonConfig& c) {
+  r.allow_only({"duration", "timeout", "max_offset", "max_rate", "max_spread"});
+  runtime::CalibrationConfig& k = c.runtime.calibration;
+  const double period = 1.0 / c.runtime.rt.rate_hz;
+  k.duration = r.bounded("duration", 0.5, 0, 60, "s");
+  if (k.duration > 0 && k.duration * c.runtime.rt.rate_hz < 1.0 - 1e-9) {
+    std::ostringstream os;
+    os << "0 (no calibration) or at least one control period 1/rate_hz = " << period << " s";
+    r["duration"].fail(os.str());
+  }
+  k.timeout = r.bounded("timeout", std::max(k.timeout, k.duration), 0, 600, "s");
+  if (k.timeout < k.duration) r["timeout"].fail("a time in [calibration.duration, 600] s");
+  k.max_offset = r.bounded("max_offset", k.max_offset, 0, 1, "rad", true);
+  k.max_rate = r.bounded("max_rate", k.max_rate, 0, 10, "rad/s", true);
+  k.max_spread = r.bounded("max_spread", k.max_spread, 0, 1, "rad", true);
+}
+
 // A ROS 2 namespace: "/" then names [A-Za-z_][A-Za-z0-9_]* separated by "/", no trailing "/",
 // at most 63 characters. (The telemetry checks it again when it starts; this layer does not
 // link the telemetry, which a build without DDS leaves out.)
@@ -456,7 +474,7 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
                                  const std::string& base_dir) {
   const Reader r = Reader::parse(text, name);
   r.allow_only({"name", "description", "rate_hz", "duration", "robot", "driver", "controller",
-                "realtime", "observer", "telemetry", "security", "log_file"});
+                "realtime", "calibration", "observer", "telemetry", "security", "log_file"});
   DaemonConfig c;
   c.source = name;
   c.name = r.string("name", "pedalwave");
@@ -475,6 +493,7 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
   if (r.has("robot")) c.robot = read_robot(r["robot"]);
   if (r.has("realtime")) read_realtime(r["realtime"], c);
   else c.runtime.auto_start = true;
+  if (r.has("calibration")) read_calibration(r["calibration"], c);
   read_driver(r.required("driver", "a driver section (type: sim | socketcan | serial)"), base_dir, c);
   if (c.driver.kind == DriverKind::kSim && r.has("robot"))
     check_robot_matches_scene(r["robot"], c.driver.scene.robot, c.driver.scene_path);

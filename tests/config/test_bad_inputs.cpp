@@ -340,6 +340,11 @@ const std::vector<KeyRow> kDaemonKeys = {
     {"realtime.stale_timeout", kSimDriver + "realtime:\n  stale_timeout: @\n", "0.02", "x", "1e9", "a number in (0, 10] [s]"},
     {"realtime.read_budget", kSimDriver + "realtime:\n  read_budget: @\n", "0.6", "x", "2", "a number in (0, 1]"},
     {"realtime.auto_start", kSimDriver + "realtime:\n  auto_start: @\n", "false", "perhaps", "", ""},
+    {"calibration.duration", kSimDriver + "calibration:\n  duration: @\n", "0.2", "x", "61", "a number in [0, 60] [s]"},
+    {"calibration.timeout", kSimDriver + "calibration:\n  timeout: @\n", "5", "x", "601", "a number in [0, 600] [s]"},
+    {"calibration.max_offset", kSimDriver + "calibration:\n  max_offset: @\n", "0.1", "x", "0", "a number in (0, 1] [rad]"},
+    {"calibration.max_rate", kSimDriver + "calibration:\n  max_rate: @\n", "0.1", "x", "11", "a number in (0, 10] [rad/s]"},
+    {"calibration.max_spread", kSimDriver + "calibration:\n  max_spread: @\n", "0.01", "x", "-1", "a number in (0, 1] [rad]"},
     {"observer.enabled", kSimDriver + "observer:\n  enabled: @\n", "false", "x", "", ""},
     {"telemetry.enabled", kSimDriver + "telemetry:\n  enabled: @\n", "false", "x", "", ""},
     {"telemetry.peers", kSimDriver + "telemetry:\n  peers: @\n", "[127.0.0.1]", "x", "[a b]", "an IPv4 address or host name"},
@@ -401,6 +406,9 @@ TEST(BadInputs, DaemonContradictionsAreRefused) {
   e = daemon_error("duration: 0.0007\n" + kSimDriver);
   EXPECT_EQ(e, "bad.yaml:1:11: duration = \"0.0007\": expected 0 (until a signal) or at least one control period "
                "1/rate_hz = 0.001 s");
+  e = daemon_error("calibration: {duration: 0.0004}\n" + kSimDriver);
+  EXPECT_EQ(e, "bad.yaml:1:25: calibration.duration = \"0.0004\": expected 0 (no calibration) or at least one "
+               "control period 1/rate_hz = 0.001 s");
   // A scene whose gait drives the controller has an amplitude ≥ 0 (the model takes any sign):
   // refused at the scene's own line, unless the daemon gives its own controller.gait.
   const auto dir = std::filesystem::temp_directory_path() / ("pw_neg_gait_" + std::to_string(::getpid()));
@@ -681,7 +689,7 @@ TEST(BadInputs, EveryKeyTheReadersAcceptHasARow) {
       {"driver", "driver:\n  type: sim\n  @: 1\n"},
       {"controller.gait", kSimDriver + "controller:\n  gait:\n    @: 1\n"},
   };
-  for (const char* m : {"robot", "controller", "realtime", "observer", "telemetry", "security"})
+  for (const char* m : {"robot", "controller", "realtime", "calibration", "observer", "telemetry", "security"})
     daemon.push_back({m, kSimDriver + m + ":\n  @: 1\n"});
   expect_a_row_per_key(accepted_leaf_keys(daemon, daemon_error), kDaemonKeys);
 }

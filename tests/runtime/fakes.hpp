@@ -60,6 +60,19 @@ class FakeDriver : public dr::Driver {
       out.deflection[js] = 0.01 * std::sin(ph);
       out.status[js] = dr::kStatusOk;
     }
+    // At rest (reads in [rest_from, rest_until)): β still, β̇ 0, deflection a sensor offset plus a small
+    // zero-mean ripple; moving_joint (≥ 0) keeps moving.
+    if (k >= rest_from && k < rest_until) {
+      for (int j = 0; j < joints_; ++j) {
+        if (j == moving_joint) continue;
+        const auto js = static_cast<std::size_t>(j);
+        out.beta[js] = 0.05 * j;
+        out.beta_dot[js] = 0.0;
+        out.deflection[js] = deflection_offset[js] + ripple * ((k & 1) ? 1.0 : -1.0);
+      }
+    } else {
+      for (int j = 0; j < joints_; ++j) out.deflection[static_cast<std::size_t>(j)] += deflection_offset[static_cast<std::size_t>(j)];
+    }
     if (k == nan_at_read) out.beta[static_cast<std::size_t>(nan_joint)] = std::numeric_limits<double>::quiet_NaN();
     if (k >= fail_from && k < fail_until) return fail_status;
     if (k >= missing_from && k < missing_until) {
@@ -70,6 +83,7 @@ class FakeDriver : public dr::Driver {
   }
 
   dr::IoStatus write(const dr::Command& cmd) override {
+    if (probe && writes == probe_from_write) probe->start();
     if (probe) probe->sample();
     ++writes;
     last_call = Call::kWrite;
@@ -99,8 +113,13 @@ class FakeDriver : public dr::Driver {
   std::uint64_t nan_at_read = kNever;
   int nan_joint = 0;
   std::uint64_t throw_at_read = kNever;
+  std::uint64_t rest_from = 0, rest_until = 0;  // reads in [from, until): the robot at rest
+  int moving_joint = -1;                       // … except this joint
+  double ripple = 0.0;                         // ± deflection ripple at rest [rad]
+  std::array<double, dr::kMaxJoints> deflection_offset{};  // sensor offsets, always [rad]
 
   Probe* probe = nullptr;  // sampled in write() and safe_stop()
+  std::uint64_t probe_from_write = kNever;  // start the probe at this write (else the controller does)
 
   // Record.
   std::uint64_t reads = 0, writes = 0, safe_stops = 0, torque_off_writes = 0, non_finite_writes = 0;

@@ -126,14 +126,24 @@ struct Exercise {
   std::uint64_t allocs = 0, locks = 0, samples = 0, cycles = 0, overruns = 0;
   prt::ExitReason reason = prt::ExitReason::kNone;
   bool last_safe = false;
+  bool calibrated = false;
 };
 
 // Runs the real cycle with fakes that themselves neither allocate nor lock, a consumer thread
 // draining the rings, a warning verdict, operator commands and (lockstep) an overrun.
-Exercise exercise(prt::ClockMode mode, std::uint64_t cycles) {
+// calibrate: CALIBRATING first (0.5 s at rest, then READY and the walk), the probe from the
+// driver's write 100 on, inside CALIBRATING.
+Exercise exercise(prt::ClockMode mode, std::uint64_t cycles, bool calibrate = false) {
   prt::RuntimeConfig cfg = lockstep_config(cycles);
   cfg.clock = mode;
+  if (calibrate) cfg.calibration.duration = 0.5;
   auto driver = std::make_unique<FakeDriver>(12);
+  if (calibrate) {
+    driver->rest_until = 1000;
+    driver->ripple = 1e-4;
+    driver->deflection_offset.fill(0.01);
+    driver->probe_from_write = 100;
+  }
   auto controller = std::make_unique<FakeController>();
   auto observer = std::make_unique<FakeObserver>();
   observer->from = 1000;
@@ -168,6 +178,7 @@ Exercise exercise(prt::ClockMode mode, std::uint64_t cycles) {
   out.overruns = r.overruns;
   out.reason = r.reason;
   out.last_safe = driver->last_call == Call::kSafeStop;
+  out.calibrated = r.calibrated;
   return out;
 }
 
@@ -180,6 +191,17 @@ TEST(NoAllocNoLock, LockstepCycleAfterWarmUp) {
   EXPECT_EQ(e.overruns, 1u) << "the overrun path was exercised";
   EXPECT_EQ(e.allocs, 0u) << "allocations on the real-time thread after warm-up";
   EXPECT_EQ(e.locks, 0u) << "lock acquisitions on the real-time thread after warm-up";
+}
+
+TEST(NoAllocNoLock, CalibratingThenWalking) {
+  const Exercise e = exercise(prt::ClockMode::kLockstep, 3000, true);
+  EXPECT_EQ(e.cycles, 3000u);
+  EXPECT_EQ(e.reason, prt::ExitReason::kCycleLimit);
+  EXPECT_TRUE(e.last_safe);
+  EXPECT_TRUE(e.calibrated);
+  EXPECT_GT(e.samples, 2800u) << "the probe covered CALIBRATING, READY and the walk";
+  EXPECT_EQ(e.allocs, 0u) << "allocations on the real-time thread";
+  EXPECT_EQ(e.locks, 0u) << "lock acquisitions on the real-time thread";
 }
 
 TEST(NoAllocNoLock, RealtimeCycleAfterWarmUp) {

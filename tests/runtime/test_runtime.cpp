@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <csignal>
 #include <cstring>
 #include <memory>
@@ -111,6 +112,158 @@ TEST(RuntimeConfig, ValidationNamesItemValueAndRange) {
   expect_error(cfg, "reactions.on_<severity>");
   FakeDriver none(0);
   EXPECT_THROW(std::make_unique<Runtime>(lockstep_config(10), none, c), std::invalid_argument);
+}
+
+// ---- CALIBRATING: the deflection sensors zeroed at rest before READY ---------------------------------
+RuntimeConfig calibrating_config(std::uint64_t max_cycles) {
+  RuntimeConfig cfg = lockstep_config(max_cycles);
+  cfg.calibration.duration = 0.1;  // 100 cycles at 1 kHz
+  return cfg;
+}
+constexpr std::array<double, 5> kOffsets = {0.01, -0.02, 0.0, 0.005, 0.03};
+
+void at_rest_with_offsets(FakeDriver& d) {
+  d.rest_until = 1000;
+  d.ripple = 2e-4;
+  for (std::size_t j = 0; j < kOffsets.size(); ++j) d.deflection_offset[j] = kOffsets[j];
+}
+
+TEST(Calibration, ZerosTheDeflectionSensorsAtRestThenReadyThenWalks) {
+  Rig rig(calibrating_config(300));
+  at_rest_with_offsets(rig.driver);
+  rig.run();
+  EXPECT_EQ(rig.result.reason, ExitReason::kCycleLimit);
+  ASSERT_TRUE(rig.result.calibrated);
+  for (std::size_t j = 0; j < kOffsets.size(); ++j)  // ±ripple alternating over 100 readings: exact
+    EXPECT_NEAR(rig.result.deflection_zero[j], kOffsets[j], 1e-12) << "joint " << j;
+  const EventSample* cal = rig.event_to(Mode::kCalibrating);
+  const EventSample* ready = rig.event_to(Mode::kReady);
+  const EventSample* running = rig.event_to(Mode::kRunning);
+  ASSERT_NE(cal, nullptr);
+  ASSERT_NE(ready, nullptr);
+  ASSERT_NE(running, nullptr);
+  EXPECT_EQ(cal->from, Mode::kConfigured);
+  EXPECT_EQ(ready->from, Mode::kCalibrating);
+  EXPECT_EQ(ready->seq, 99u) << "READY after 100 averaged cycles";
+  EXPECT_EQ(ready->joint, 4) << "the event names the largest offset's joint";
+  EXPECT_NEAR(ready->value, 0.03, 1e-12);
+  EXPECT_EQ(running->seq, 99u) << "auto_start: RUNNING in the cycle READY is reached";
+  // Torque off while calibrating, the observer only from READY on, on zeroed readings.
+  EXPECT_EQ(rig.driver.torque_off_writes, 99u);
+  EXPECT_EQ(rig.observer.calls, 300u - 99u);
+  ASSERT_EQ(rig.samples.size(), 300u);
+  EXPECT_EQ(rig.samples[50].mode, Mode::kCalibrating);
+  EXPECT_NEAR(rig.samples[50].deflection[1], kOffsets[1] - 2e-4, 1e-15) << "raw while calibrating";
+  for (std::size_t j = 0; j < kOffsets.size(); ++j) {
+    // cycle 120: still at rest, zeroed → ± ripple only; α = β − deflection and τ = K·deflection follow.
+    EXPECT_NEAR(rig.samples[120].deflection[j], 0.0, 2e-4 + 1e-15) << "joint " << j;
+    EXPECT_NEAR(rig.samples[120].tau_sea[j], 50.0 * rig.samples[120].deflection[j], 1e-12);
+  }
+  rig.expect_safe_exit();
+}
+
+TEST(Calibration, ARobotNotAtRestIsAFaultNamingTheJointAndNeverWalks) {
+  RuntimeConfig cfg = calibrating_config(300);
+  cfg.calibration.timeout = 0.2;
+  Rig rig(cfg);
+  at_rest_with_offsets(rig.driver);
+  rig.driver.moving_joint = 3;  // β̇ up to 0.1 rad/s > max_rate 0.05
+  rig.run();
+  ASSERT_NE(rig.event_to(Mode::kFault), nullptr);
+  EXPECT_EQ(rig.event_to(Mode::kFault)->seq, 199u) << "FAULT at the timeout, 0.2 s";
+  EXPECT_EQ(rig.result.reason, ExitReason::kFault);
+  EXPECT_EQ(rig.result.fault, FaultClass::kImplausible);
+  EXPECT_EQ(rig.result.fault_joint, 3);
+  EXPECT_FALSE(rig.result.calibrated);
+  EXPECT_EQ(rig.event_to(Mode::kReady), nullptr);
+  EXPECT_EQ(rig.event_to(Mode::kRunning), nullptr);
+  EXPECT_EQ(rig.controller.controls, 0u);
+  EXPECT_EQ(rig.driver.torque_off_writes, rig.driver.writes) << "nothing but torque off was sent";
+  EXPECT_TRUE(rig.has_event_text("calibration: not at rest within timeout (|motor rate| above max_rate)"));
+  for (double z : rig.result.deflection_zero) EXPECT_EQ(z, 0.0) << "no zero taken from a moving robot";
+  rig.expect_safe_exit();
+}
+
+TEST(Calibration, AnOffsetBeyondMaxOffsetOrAShakingSensorIsRefused) {
+  {
+    Rig rig(calibrating_config(300));
+    at_rest_with_offsets(rig.driver);
+    rig.driver.deflection_offset[2] = -0.08;  // > max_offset 0.05
+    rig.run();
+    EXPECT_EQ(rig.result.reason, ExitReason::kFault);
+    EXPECT_EQ(rig.result.fault_joint, 2);
+    EXPECT_TRUE(rig.has_event_text("beyond max_offset"));
+    rig.expect_safe_exit();
+  }
+  {
+    RuntimeConfig cfg = calibrating_config(300);
+    cfg.calibration.timeout = 0.25;
+    Rig rig(cfg);
+    at_rest_with_offsets(rig.driver);
+    rig.driver.ripple = 1.5e-3;  // max − min = 3e-3 > max_spread 2e-3
+    rig.run();
+    EXPECT_EQ(rig.result.reason, ExitReason::kFault);
+    EXPECT_EQ(rig.result.fault_joint, 0);
+    EXPECT_TRUE(rig.has_event_text("more than max_spread"));
+    rig.expect_safe_exit();
+  }
+}
+
+TEST(Calibration, MotionRestartsTheWindowSoOnlyReadingsAtRestAreAveraged) {
+  Rig rig(calibrating_config(400));
+  at_rest_with_offsets(rig.driver);
+  rig.driver.rest_from = 60;  // moving (β̇ ≠ 0, deflection swinging) for the first 60 readings
+  rig.driver.rest_until = 300;
+  rig.run();
+  ASSERT_TRUE(rig.result.calibrated);
+  ASSERT_NE(rig.event_to(Mode::kReady), nullptr);
+  EXPECT_EQ(rig.event_to(Mode::kReady)->seq, 159u) << "100 cycles at rest after the motion";
+  for (std::size_t j = 0; j < kOffsets.size(); ++j)
+    EXPECT_NEAR(rig.result.deflection_zero[j], kOffsets[j], 1e-12) << "nothing of the motion averaged in";
+  rig.expect_safe_exit();
+}
+
+TEST(Calibration, OperatorStartWhileCalibratingIsRejectedAndTheEStopHonoured) {
+  RuntimeConfig cfg = calibrating_config(300);
+  cfg.auto_start = false;
+  Rig rig(cfg);
+  at_rest_with_offsets(rig.driver);
+  OperatorCommand go;
+  go.kind = OperatorCommandKind::kStartWalking;
+  ASSERT_TRUE(rig.runtime->post(go));
+  rig.run();
+  EXPECT_TRUE(rig.has_event_text("start walking rejected: calibrating"));
+  EXPECT_EQ(rig.event_to(Mode::kRunning), nullptr) << "a start before READY is not remembered";
+  EXPECT_TRUE(rig.result.calibrated);
+
+  Rig stop(calibrating_config(300));
+  at_rest_with_offsets(stop.driver);
+  OperatorCommand e;
+  e.kind = OperatorCommandKind::kEmergencyStop;
+  ASSERT_TRUE(stop.runtime->post(e));
+  stop.run();
+  EXPECT_EQ(stop.result.reason, ExitReason::kEmergencyStop);
+  EXPECT_EQ(stop.driver.writes, 0u);
+  stop.expect_safe_exit();
+}
+
+TEST(Calibration, ValidationNamesTheItem) {
+  FakeDriver d(kJoints);
+  FakeController c;
+  RuntimeConfig cfg = calibrating_config(10);
+  cfg.calibration.duration = 0.0004;  // shorter than one period
+  try {
+    auto r = std::make_unique<Runtime>(cfg, d, c);
+    ADD_FAILURE() << "accepted a calibration shorter than a period";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("calibration.duration = 0.0004"), std::string::npos) << e.what();
+  }
+  cfg = calibrating_config(10);
+  cfg.calibration.timeout = 0.05;  // shorter than the window
+  EXPECT_THROW(std::make_unique<Runtime>(cfg, d, c), std::invalid_argument);
+  cfg = calibrating_config(10);
+  cfg.calibration.max_offset = 0.0;
+  EXPECT_THROW(std::make_unique<Runtime>(cfg, d, c), std::invalid_argument);
 }
 
 // ---- Normal operation ------------------------------------------------------------------------------

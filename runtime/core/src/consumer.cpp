@@ -37,6 +37,13 @@ std::string format_summary(const RunResult& r, const LoopMetrics& m, const Event
   os << ")\n";
   for (const RunEvent& e : all)
     if (e.listed) os << "  " << format_event(e, events) << "\n";
+  if (r.calibrated) {
+    os << "deflection zeros (CALIBRATING) [rad]:";
+    for (int j = 0; j < r.joints; ++j) {
+      os << (j ? ", " : " ") << "joint " << j + 1 << " " << r.deflection_zero[static_cast<std::size_t>(j)];
+    }
+    os << "\n";
+  }
   os << "cycles " << r.cycles << ", overruns " << r.overruns << " (" << r.skipped_periods
      << " periods skipped), ring drops: cycle " << r.cycle_drops << ", event " << r.event_drops << "\n"
      << "rt setup: " << r.rt.describe() << "\n"

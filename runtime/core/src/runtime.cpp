@@ -102,6 +102,18 @@ void validate(const RuntimeConfig& cfg, ValidateScope scope) {
     throw std::invalid_argument(os.str());
   };
   const double period = 1.0 / cfg.rt.rate_hz;
+  const CalibrationConfig& cal = cfg.calibration;
+  if (!std::isfinite(cal.duration) || cal.duration < 0.0 || (cal.duration > 0 && cal.duration * cfg.rt.rate_hz < 1.0 - 1e-9) ||
+      cal.duration > 60.0)
+    fail("calibration.duration", cal.duration, "0 (off) or an averaging time in [one period, 60] s");
+  if (!std::isfinite(cal.timeout) || cal.timeout < cal.duration || cal.timeout > 600.0)
+    fail("calibration.timeout", cal.timeout, "a time in [calibration.duration, 600] s");
+  if (!(cal.max_offset > 0.0 && cal.max_offset <= 1.0))
+    fail("calibration.max_offset", cal.max_offset, "an angle in (0, 1] rad");
+  if (!(cal.max_rate > 0.0 && cal.max_rate <= 10.0))
+    fail("calibration.max_rate", cal.max_rate, "a rate in (0, 10] rad/s");
+  if (!(cal.max_spread > 0.0 && cal.max_spread <= 1.0))
+    fail("calibration.max_spread", cal.max_spread, "an angle in (0, 1] rad");
   if (!(cfg.read_budget > 0.0 && cfg.read_budget <= 1.0))
     fail("read_budget", cfg.read_budget, "a fraction of the period in (0, 1]");
   if (!std::isfinite(cfg.stale_timeout) || cfg.stale_timeout < period || cfg.stale_timeout > 10.0) {
@@ -166,7 +178,16 @@ RunResult Runtime::run() {
       cfg_.clock == ClockMode::kLockstep ? cfg_.lockstep_start_ns : monotonic_ns() + period_ns_;
   clock_ = LoopClock(cfg_.clock, start);
   last_fresh_ns_.fill(start);
-  set_mode(Mode::kReady, "loop started");
+  auto_start_pending_ = cfg_.auto_start;
+  if (cfg_.calibration.duration > 0) {
+    cal_ = CalibrationSums{};
+    const double per_s = 1e9 / static_cast<double>(period_ns_);
+    cal_.needed = std::max<std::int64_t>(1, std::llround(cfg_.calibration.duration * per_s));
+    cal_.timeout = std::max<std::int64_t>(cal_.needed, std::llround(cfg_.calibration.timeout * per_s));
+    set_mode(Mode::kCalibrating, "loop started: zeroing the deflection sensors, torque off, at rest");
+  } else {
+    set_mode(Mode::kReady, "loop started");
+  }
 
   std::int64_t deadline = start;
   std::int64_t prev_deadline = start - period_ns_;
@@ -203,6 +224,8 @@ RunResult Runtime::run() {
   result_.max_skipped = metrics_.max_skipped;
   result_.cycle_drops = cycles_.drops();
   result_.event_drops = events_.drops();
+  result_.joints = joints_;
+  result_.deflection_zero = deflection_zero_;
   return result_;
 }
 
@@ -241,9 +264,40 @@ bool Runtime::cycle(std::int64_t deadline, std::int64_t prev_deadline, std::int6
   return !stop.stop;
 }
 
-bool Runtime::cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std::int64_t wake,
+// The cycle, as a table of contents. Each step is one function below, in this order; a step that
+// decides to stop fills `stop`, and the cycle ends there (the safe stop replaces the write).
+void Runtime::cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std::int64_t wake,
                          StopDecision& stop) {
-  // ---- 0. Start the record; stop sources that need no measurement ----
+  start_record(deadline, wake);
+  take_stop_requests(stop);  // signal, request_stop(), operator e-stop: before any measurement
+  if (stop.stop) return;
+  cur_deadline_ = deadline;
+
+  Stamps at{.wake = wake};
+  read_feedback(deadline, at);
+  const Verdict rt = check_feedback(wake);
+  if (modes_.mode() == Mode::kCalibrating) calibrate(stop);  // → READY with the zeros, or FAULT
+  if (stop.stop) return;
+  apply_operator_commands();  // start / stop walking / set gait act on this cycle's measurement
+
+  const bool running = modes_.mode() == Mode::kRunning;
+  const double t = running ? static_cast<double>(deadline - running_since_ns_) * 1e-9 : 0.0;
+  const double dt = static_cast<double>(deadline - prev_deadline) * 1e-9;
+  sample_.t = t;
+  const Verdict ov = observe(t, dt, at);
+  publish_faults(rt, ov);
+  react(rt, stop);
+  react(ov, stop);
+  if (stop.stop) return;
+
+  control(t, dt, at);
+  check_command(stop);  // a NaN command is never sent
+  if (stop.stop) return;
+  write(at);
+}
+
+// ---- The cycle's steps -------------------------------------------------------------------------
+void Runtime::start_record(std::int64_t deadline, std::int64_t wake) noexcept {
   sample_ = CycleSample{};
   sample_.seq = seq_;
   sample_.t_ns = wake;
@@ -253,51 +307,60 @@ bool Runtime::cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std:
   sample_.wake_latency_ns = static_cast<std::int32_t>(
       std::clamp<std::int64_t>(latency, std::numeric_limits<std::int32_t>::min(),
                                std::numeric_limits<std::int32_t>::max()));
+}
+
+void Runtime::take_stop_requests(StopDecision& stop) noexcept {
   if (const int sig = pending_stop_signal(); sig != 0) {
     result_.signal = sig;
     stop.stop = true;
     stop.reason = ExitReason::kSignal;
     stop.text = stop_signal_text(sig);
-    return false;
+    return;
   }
   if (stop_requested_.load(std::memory_order_relaxed)) {
     stop.stop = true;
     stop.reason = ExitReason::kStopRequested;
     stop.text = "stop requested";
-    return false;
+    return;
   }
   take_operator_commands(stop);
-  if (stop.stop) return false;  // emergency stop: honoured before anything else
-  cur_deadline_ = deadline;
+}
 
-  // ---- 1. read ----
+void Runtime::read_feedback(std::int64_t deadline, Stamps& at) {
   driver_.begin_cycle(deadline);
-  const drivers::IoStatus io = driver_.read(wake, wake + read_budget_ns_, fb_);
-  const std::int64_t t_read = clock_.now();
+  const drivers::IoStatus io = driver_.read(at.wake, at.wake + read_budget_ns_, fb_);
+  at.read = clock_.now();
   fb_.joints = joints_;
+  for (int j = 0; j < joints_; ++j)
+    fb_.deflection[static_cast<std::size_t>(j)] -= deflection_zero_[static_cast<std::size_t>(j)];
   fill_measured(fb_);
-
   // Freshness per joint: a joint is fresh when the read succeeded for it this cycle.
   constexpr std::uint16_t kNotFresh =
       drivers::kStatusMissing | drivers::kStatusStale | drivers::kStatusBusError;
-  std::int64_t worst_age = 0;
-  int worst_joint = -1;
-  int stale_joints = 0;
   for (int j = 0; j < joints_; ++j) {
     const auto js = static_cast<std::size_t>(j);
     const bool fresh = io == drivers::IoStatus::kOk ||
                        (io == drivers::IoStatus::kPartial && (fb_.status[js] & kNotFresh) == 0);
-    if (fresh) last_fresh_ns_[js] = wake;
-    const std::int64_t age = wake - last_fresh_ns_[js];
+    if (fresh) last_fresh_ns_[js] = at.wake;
+  }
+  sample_.t_read_ns = static_cast<std::int32_t>(at.read - at.wake);
+  metrics_.read.record(at.read - at.wake);
+}
+
+// The runtime's own checks of the feedback; the most severe one names the joint.
+Verdict Runtime::check_feedback(std::int64_t wake) const noexcept {
+  Verdict rt;
+  std::int64_t worst_age = 0;
+  int worst_joint = -1;
+  int stale_joints = 0;
+  for (int j = 0; j < joints_; ++j) {
+    const std::int64_t age = wake - last_fresh_ns_[static_cast<std::size_t>(j)];
     if (age > stale_timeout_ns_) ++stale_joints;
     if (age > worst_age) {
       worst_age = age;
       worst_joint = j;
     }
   }
-
-  // Runtime's own checks (most severe first wins the joint field).
-  Verdict rt;
   if (stale_joints > 0) {
     rt.fault = FaultClass::kStaleData;
     rt.severity = Severity::kStop;
@@ -307,19 +370,17 @@ bool Runtime::cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std:
     rt.text = "sensor feedback stale longer than stale_timeout";
     rt.flags |= bit(FaultClass::kStaleData);
   }
-  {
-    int j = first_non_finite(fb_.beta, joints_);
-    if (j < 0) j = first_non_finite(fb_.beta_dot, joints_);
-    if (j < 0) j = first_non_finite(fb_.deflection, joints_);
-    if (j >= 0) {
-      rt.fault = FaultClass::kImplausible;
-      rt.severity = Severity::kStop;
-      rt.joint = static_cast<std::int16_t>(j);
-      rt.value = std::numeric_limits<double>::quiet_NaN();
-      rt.threshold = 0.0;
-      rt.text = "non-finite measurement (NaN/Inf)";
-      rt.flags |= bit(FaultClass::kImplausible);
-    }
+  int j = first_non_finite(fb_.beta, joints_);
+  if (j < 0) j = first_non_finite(fb_.beta_dot, joints_);
+  if (j < 0) j = first_non_finite(fb_.deflection, joints_);
+  if (j >= 0) {
+    rt.fault = FaultClass::kImplausible;
+    rt.severity = Severity::kStop;
+    rt.joint = static_cast<std::int16_t>(j);
+    rt.value = std::numeric_limits<double>::quiet_NaN();
+    rt.threshold = 0.0;
+    rt.text = "non-finite measurement (NaN/Inf)";
+    rt.flags |= bit(FaultClass::kImplausible);
   }
   if (overrun_fault_pending_) {
     if (rank(rt.severity) < rank(Severity::kStop) || rt.fault == FaultClass::kNone) {
@@ -332,31 +393,36 @@ bool Runtime::cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std:
     }
     rt.flags |= bit(FaultClass::kOverrun);
   }
+  return rt;
+}
 
-  // ---- operator commands that act on the measurement (start, stop walking, set gait) ----
+void Runtime::apply_operator_commands() {
   for (int i = 0; i < n_pending_; ++i) apply_operator_command(pending_[static_cast<std::size_t>(i)]);
   n_pending_ = 0;
-  if (cfg_.auto_start && seq_ == 0 && modes_.mode() == Mode::kReady) {
+  if (auto_start_pending_ && modes_.mode() == Mode::kReady) {
+    auto_start_pending_ = false;
     OperatorCommand go;
     go.kind = OperatorCommandKind::kStartWalking;
     apply_operator_command(go);
   }
+}
 
-  const bool running = modes_.mode() == Mode::kRunning;
-  const double t = running ? static_cast<double>(deadline - running_since_ns_) * 1e-9 : 0.0;
-  const double dt = static_cast<double>(deadline - prev_deadline) * 1e-9;
-  sample_.t = t;
-
-  // ---- 2. observe ----
+Verdict Runtime::observe(double t, double dt, Stamps& at) {
   Verdict ov;
-  if (observer_) {
+  // The observer starts with READY, on zeroed sensors (CALIBRATING's readings carry the offsets).
+  if (observer_ && modes_.mode() != Mode::kCalibrating) {
     const drivers::CommandHistory cmds(history_.data(), kCommandHistory, newest_written_);
     ov = observer_->observe(fb_, cmds, t, dt, sample_);
   }
-  const std::int64_t t_obs = clock_.now();
   if (ov.fault != FaultClass::kNone) ov.flags |= bit(ov.fault);
+  at.observe = clock_.now();
+  sample_.t_observe_ns = static_cast<std::int32_t>(at.observe - at.read);
+  metrics_.observe.record(at.observe - at.read);
+  return ov;
+}
 
-  // Publish the fault state, one event per newly active class, then react.
+// The fault state into the sample, and one event per newly active fault class.
+void Runtime::publish_faults(const Verdict& rt, const Verdict& ov) noexcept {
   const std::uint32_t flags = rt.flags | ov.flags;
   sample_.fault_flags = flags;
   const Verdict& worst = rank(rt.severity) >= rank(ov.severity) && rt.fault != FaultClass::kNone ? rt : ov;
@@ -366,15 +432,9 @@ bool Runtime::cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std:
   if (ov.fault != FaultClass::kNone && (active_flags_ & bit(ov.fault)) == 0)
     push_event(modes_.mode(), modes_.mode(), &ov, ov.text ? ov.text : "observer fault");
   active_flags_ = flags;
-  react(rt, stop);
-  react(ov, stop);
-  sample_.t_read_ns = static_cast<std::int32_t>(t_read - wake);
-  sample_.t_observe_ns = static_cast<std::int32_t>(t_obs - t_read);
-  metrics_.read.record(t_read - wake);
-  metrics_.observe.record(t_obs - t_read);
-  if (stop.stop) return false;  // the safe stop replaces this cycle's write
+}
 
-  // ---- 3. control ----
+void Runtime::control(double t, double dt, Stamps& at) {
   cmd_.joints = joints_;
   cmd_.seq = seq_;
   cmd_.torque_off = false;
@@ -391,49 +451,139 @@ bool Runtime::cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std:
     cmd_.kd.fill(0.0);
     cmd_.torque_off = true;
   }
-  const std::int64_t t_ctl = clock_.now();
-  sample_.t_control_ns = static_cast<std::int32_t>(t_ctl - t_obs);
-  metrics_.control.record(t_ctl - t_obs);
-  {
-    int j = first_non_finite(cmd_.tau, joints_);
-    if (j < 0) j = first_non_finite(cmd_.beta_ref, joints_);
-    if (j < 0) j = first_non_finite(cmd_.beta_dot_ref, joints_);
-    if (j < 0) j = first_non_finite(cmd_.kp, joints_);
-    if (j < 0) j = first_non_finite(cmd_.kd, joints_);
-    if (j >= 0) {
-      Verdict v;
-      v.fault = FaultClass::kImplausible;
-      v.severity = Severity::kStop;
-      v.joint = static_cast<std::int16_t>(j);
-      v.value = std::numeric_limits<double>::quiet_NaN();
-      v.flags = bit(FaultClass::kImplausible);
-      v.text = "non-finite command (NaN/Inf): not sent";
-      sample_.fault_flags |= v.flags;
-      sample_.fault_joint = v.joint;
-      push_event(modes_.mode(), modes_.mode(), &v, v.text);
-      // A NaN command is never sent, whatever the reaction table says.
-      stop.stop = true;
-      stop.reason = ExitReason::kFault;
-      stop.verdict = v;
-      stop.text = v.text;
-      return false;
-    }
-  }
+  at.control = clock_.now();
+  sample_.t_control_ns = static_cast<std::int32_t>(at.control - at.observe);
+  metrics_.control.record(at.control - at.observe);
+  // What the modules will apply at this measurement (the module PD law), for telemetry.
   for (int j = 0; j < joints_; ++j) {
     const auto js = static_cast<std::size_t>(j);
     sample_.u[js] = cmd_.torque_off ? 0.0
                                     : cmd_.tau[js] + cmd_.kp[js] * (cmd_.beta_ref[js] - fb_.beta[js]) +
                                           cmd_.kd[js] * (cmd_.beta_dot_ref[js] - fb_.beta_dot[js]);
   }
+}
 
-  // ---- 4. write ----
+void Runtime::check_command(StopDecision& stop) noexcept {
+  int j = first_non_finite(cmd_.tau, joints_);
+  if (j < 0) j = first_non_finite(cmd_.beta_ref, joints_);
+  if (j < 0) j = first_non_finite(cmd_.beta_dot_ref, joints_);
+  if (j < 0) j = first_non_finite(cmd_.kp, joints_);
+  if (j < 0) j = first_non_finite(cmd_.kd, joints_);
+  if (j < 0) return;
+  Verdict v;
+  v.fault = FaultClass::kImplausible;
+  v.severity = Severity::kStop;
+  v.joint = static_cast<std::int16_t>(j);
+  v.value = std::numeric_limits<double>::quiet_NaN();
+  v.flags = bit(FaultClass::kImplausible);
+  v.text = "non-finite command (NaN/Inf): not sent";
+  sample_.fault_flags |= v.flags;
+  sample_.fault_joint = v.joint;
+  push_event(modes_.mode(), modes_.mode(), &v, v.text);
+  // Whatever the reaction table says.
+  stop.stop = true;
+  stop.reason = ExitReason::kFault;
+  stop.verdict = v;
+  stop.text = v.text;
+}
+
+void Runtime::write(Stamps& at) {
   driver_.write(cmd_);
   history_[static_cast<std::size_t>(seq_ % kCommandHistory)] = cmd_;
   newest_written_ = seq_;
-  const std::int64_t t_wr = clock_.now();
-  sample_.t_write_ns = static_cast<std::int32_t>(t_wr - t_ctl);
-  metrics_.write.record(t_wr - t_ctl);
-  return true;
+  at.write = clock_.now();
+  sample_.t_write_ns = static_cast<std::int32_t>(at.write - at.control);
+  metrics_.write.record(at.write - at.control);
+}
+
+// One CALIBRATING cycle. The zeros are the means over `duration` of consecutive cycles at rest;
+// a joint that moves (|β̇| > max_rate, or its deflection spreads over more than max_spread)
+// starts the window again — someone touching the robot delays READY, it does not zero a load.
+// Not at rest within `timeout`, too few fresh readings, or an offset beyond max_offset: a FAULT
+// naming the joint, and the zeros stay 0.
+void Runtime::calibrate(StopDecision& stop) noexcept {
+  const CalibrationConfig& c = cfg_.calibration;
+  ++cal_.cycles;
+  bool moved = false;
+  for (int j = 0; j < joints_; ++j) {
+    const auto js = static_cast<std::size_t>(j);
+    if (last_fresh_ns_[js] != sample_.t_ns) continue;  // this joint's reading is not new
+    const double d = fb_.deflection[js];
+    if (cal_.n[js] == 0) cal_.lo[js] = cal_.hi[js] = d;
+    cal_.lo[js] = std::min(cal_.lo[js], d);
+    cal_.hi[js] = std::max(cal_.hi[js], d);
+    cal_.sum[js] += d;
+    ++cal_.n[js];
+    const double rate = std::abs(fb_.beta_dot[js]);
+    if (!moved && rate > c.max_rate) {
+      moved = true;
+      cal_.why = {j, rate, c.max_rate, "calibration: not at rest within timeout (|motor rate| above max_rate)"};
+    } else if (!moved && cal_.hi[js] - cal_.lo[js] > c.max_spread) {
+      moved = true;
+      cal_.why = {j, cal_.hi[js] - cal_.lo[js], c.max_spread,
+                  "calibration: not at rest within timeout (deflection moved more than max_spread)"};
+    }
+  }
+  if (moved) {
+    cal_.window = 0;
+    cal_.n.fill(0);
+    cal_.sum.fill(0.0);
+  } else {
+    ++cal_.window;
+  }
+
+  Verdict v;
+  v.fault = FaultClass::kImplausible;
+  v.severity = Severity::kStop;
+  v.flags = bit(FaultClass::kImplausible);
+  if (cal_.window >= cal_.needed) {
+    for (int j = 0; j < joints_ && v.text == nullptr; ++j) {
+      const auto js = static_cast<std::size_t>(j);
+      v.joint = static_cast<std::int16_t>(j);
+      const double mean = cal_.n[js] > 0 ? cal_.sum[js] / static_cast<double>(cal_.n[js]) : 0.0;
+      if (cal_.n[js] < (cal_.needed + 1) / 2) {
+        v.value = static_cast<double>(cal_.n[js]);
+        v.threshold = static_cast<double>((cal_.needed + 1) / 2);
+        v.text = "calibration: too few fresh deflection readings to zero the sensor";
+      } else if (std::abs(mean) > c.max_offset) {
+        v.value = mean;
+        v.threshold = c.max_offset;
+        v.text = "calibration: deflection offset beyond max_offset: sensor broken or mounted wrong";
+      }
+    }
+  } else if (cal_.cycles >= cal_.timeout) {
+    v.joint = static_cast<std::int16_t>(cal_.why.joint);
+    v.value = cal_.why.value;
+    v.threshold = cal_.why.threshold;
+    v.text = cal_.why.text;
+  } else {
+    return;  // still averaging, or waiting for rest
+  }
+  if (v.text != nullptr) {
+    sample_.fault_flags |= v.flags;
+    sample_.fault_joint = v.joint;
+    stop.stop = true;
+    stop.reason = ExitReason::kFault;
+    stop.verdict = v;
+    stop.text = v.text;
+    return;
+  }
+  // Zeroed: this cycle's readings too, so the observer and the controller see them corrected.
+  Verdict info;
+  info.joint = -1;
+  for (int j = 0; j < joints_; ++j) {
+    const auto js = static_cast<std::size_t>(j);
+    deflection_zero_[js] = cal_.sum[js] / static_cast<double>(cal_.n[js]);
+    if (info.joint < 0 || std::abs(deflection_zero_[js]) > std::abs(info.value)) {
+      info.joint = static_cast<std::int16_t>(j);
+      info.value = deflection_zero_[js];
+    }
+    fb_.deflection[js] -= deflection_zero_[js];
+  }
+  fill_measured(fb_);
+  info.threshold = c.max_offset;
+  result_.calibrated = true;
+  set_mode(Mode::kReady, "deflection sensors zeroed (value: the largest offset, on its joint)", &info);
 }
 
 void Runtime::take_operator_commands(StopDecision& stop) noexcept {
@@ -466,6 +616,9 @@ void Runtime::apply_operator_command(const OperatorCommand& c) {
         held_ = false;
         controller_.resume(fb_);
         push_event(m, m, &info, "start walking: gait resumed");
+      } else if (m == Mode::kCalibrating) {
+        info.severity = Severity::kWarning;
+        push_event(m, m, &info, "start walking rejected: calibrating (READY follows)");
       } else {
         info.severity = Severity::kWarning;
         push_event(m, m, &info, "start walking rejected: not READY and not held");

@@ -46,6 +46,24 @@ using CycleRing = SpscRing<CycleSample, 1024>;     // ~1 s at 1 kHz
 using EventRing = SpscRing<EventSample, 256>;
 using CommandRing = SpscRing<OperatorCommand, 64>;
 
+// CALIBRATING (DESIGN.md's modes): before READY, with every module torque-off, the loop averages
+// each joint's deflection sensor over `duration` and takes the mean as the sensor's zero. With the
+// motor free and at rest the spring carries no torque (the motor's equation I_r·β̈ = u − τ_s with
+// u = 0 and β̈ = 0), so what the sensor reads is its own offset (mounting, magnet, drift). The
+// offsets are subtracted from every later reading, before the observer and the controller see it.
+// The window is `duration` of consecutive cycles at rest: a joint that moves (|β̇| > max_rate, or
+// its deflection spreads over more than max_spread) starts it again. Refused, with a FAULT naming
+// the joint, when the robot is not at rest within `timeout` or an offset is beyond max_offset (a
+// sensor that far off is broken or mounted wrong, not to be zeroed away). duration 0: no
+// CALIBRATING, zeros are 0.
+struct CalibrationConfig {
+  double duration = 0.0;     // averaging time [s]; 0 = off
+  double timeout = 5.0;      // longest wait for `duration` at rest [s], ≥ duration
+  double max_offset = 0.05;  // largest offset accepted [rad]
+  double max_rate = 0.05;    // largest motor rate of a robot at rest [rad/s]
+  double max_spread = 2e-3;  // largest max − min deflection during the average [rad]
+};
+
 struct RuntimeConfig {
   RtConfig rt;                            // rate, priority, affinity, mlockall, stack
   ClockMode clock = ClockMode::kRealtime; // kLockstep: deterministic, no sleeping
@@ -58,6 +76,7 @@ struct RuntimeConfig {
   std::uint32_t overrun_fault_after = 0;  // this many consecutive overruns → kOverrun fault with
                                           // severity kStop; 0 = overruns are only counted
   int max_commands_per_cycle = 4;         // operator commands taken per cycle [-], 1..64
+  CalibrationConfig calibration;          // zero the deflection sensors before READY
   ReactionTable reactions;                // what each verdict does
   RobotDescription description;           // published once; spring_stiffness gives tau_sea
 };
@@ -89,6 +108,9 @@ struct RunResult {
   std::uint32_t max_skipped = 0;         // most periods skipped at once (one stall) [-]
   std::uint64_t cycle_drops = 0;         // CycleSamples dropped (ring full) [-]
   std::uint64_t event_drops = 0;         // EventSamples dropped (ring full) [-]
+  int joints = 0;                        // N-1 [-]
+  bool calibrated = false;               // CALIBRATING ran to READY
+  std::array<double, drivers::kMaxJoints> deflection_zero{};  // offsets subtracted [rad]
 };
 
 // Process-wide stop flag set by SIGINT/SIGTERM/SIGHUP/SIGQUIT (async-signal-safe: a lock-free atomic store).
@@ -144,9 +166,28 @@ class Runtime {
     const char* text = "";  // static reason text
   };
 
+  // Clock readings through one cycle, for its timing record [ns].
+  struct Stamps {
+    std::int64_t wake = 0, read = 0, observe = 0, control = 0, write = 0;
+  };
+
   bool cycle(std::int64_t deadline, std::int64_t prev_deadline, std::int64_t wake) noexcept;
-  bool cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std::int64_t wake,
+  void cycle_body(std::int64_t deadline, std::int64_t prev_deadline, std::int64_t wake,
                   StopDecision& stop);
+  // The cycle's steps, in the order cycle_body() calls them.
+  void start_record(std::int64_t deadline, std::int64_t wake) noexcept;
+  void take_stop_requests(StopDecision& stop) noexcept;
+  void read_feedback(std::int64_t deadline, Stamps& at);
+  Verdict check_feedback(std::int64_t wake) const noexcept;
+  void apply_operator_commands();
+  Verdict observe(double t, double dt, Stamps& at);
+  void publish_faults(const Verdict& rt, const Verdict& ov) noexcept;
+  void control(double t, double dt, Stamps& at);
+  void check_command(StopDecision& stop) noexcept;
+  void write(Stamps& at);
+
+  void calibrate(StopDecision& stop) noexcept;
+
   void take_operator_commands(StopDecision& stop) noexcept;
   void apply_operator_command(const OperatorCommand& c);
   void react(const Verdict& v, StopDecision& stop);
@@ -186,6 +227,20 @@ class Runtime {
   std::uint32_t consecutive_overruns_ = 0;
   bool overrun_fault_pending_ = false;
   std::int32_t last_skipped_ = 0;
+  bool auto_start_pending_ = false;    // cfg.auto_start, until the first READY cycle
+
+  // CALIBRATING: running sums per joint, and the zeros found (0 until then).
+  struct CalibrationSums {
+    std::int64_t cycles = 0, needed = 0, timeout = 0, window = 0;
+    struct Why {
+      int joint = -1;
+      double value = 0.0, threshold = 0.0;
+      const char* text = nullptr;
+    } why;
+    std::array<std::int64_t, drivers::kMaxJoints> n{};
+    std::array<double, drivers::kMaxJoints> sum{}, lo{}, hi{}, max_rate{};
+  } cal_{};
+  std::array<double, drivers::kMaxJoints> deflection_zero_{};
 
   LoopMetrics metrics_;
   RunResult result_;

@@ -19,7 +19,8 @@
 #     get_enclaves, governance.xml and every permissions.xml against sros2's governance.xsd /
 #     permissions.xsd (and a governance with a required element removed is rejected by them,
 #     so the check can fail); the grants in both keystores allow exactly the same topics.
-#  3. The daemon and monitors on sros2's keystore: the start line says DDS Security ON with
+#  3. The daemon and monitors on sros2's keystore: on another domain than sros2's documents the
+#     daemon refuses to start naming governance.p7s; on the right one the start line says DDS Security ON with
 #     sros2's robot enclave; the monitor-only identity gets the robot's telemetry but Cyclone's
 #     access control refuses its command writer (exit 5); a participant without identity sees
 #     nothing; the operator's stop is EXECUTED; the e-stop identity's e-stop is EXECUTED and ends
@@ -122,8 +123,15 @@ monitor() {  # monitor KEYSTORE ENCLAVE|none ARGS...
   fi
 }
 
-# 3. pedalwave on sros2's keystore.
+# 3. pedalwave on sros2's keystore. sros2's governance and permissions are for ROS_DOMAIN_ID
+# only: on another domain the daemon refuses to start, naming the file.
 config "$work/demo.yaml" "$S"
+other_domain=$((domain == 230 ? 229 : domain + 1))
+sed "s|^  domain_id: $domain\$|  domain_id: $other_domain|" "$work/demo.yaml" >"$work/other_domain.yaml"
+env -u CYCLONEDDS_URI "$rt" -c "$work/other_domain.yaml" --duration 2 >"$work/other_domain.log" 2>&1
+check "daemon on another domain than sros2's documents: refused at start (exit status)" 2 $? "$work/other_domain.log"
+contains "... naming sros2's governance and the domain" "$work/other_domain.log" \
+  "$S/enclaves/pedalwave/demo/governance.p7s: no domain_rule for DDS domain $other_domain"
 env -u CYCLONEDDS_URI "$rt" -c "$work/demo.yaml" --duration 60 >"$work/daemon.log" 2>&1 &
 daemon_pid=$!
 monitor "$S" /pedalwave/screen --once --duration 20 >"$work/screen.log" 2>&1

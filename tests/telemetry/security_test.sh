@@ -10,7 +10,9 @@
 #     robot (exit 4); a participant of another CA (its own valid keystore) likewise;
 #   - misconfigured keystores are refused at start (exit 2) naming the file and what is wrong:
 #     expired certificate, certificate of another CA, unsigned permissions, permissions signed by
-#     another CA, permissions for another domain, a missing enclave.
+#     another CA, permissions for another domain, a missing enclave;
+#   - a keystore whose governance signs rather than encrypts (--protection SIGN) works, and the
+#     daemon's start line says so.
 # Exit 0 pass, 1 fail, 77 SKIPPED (no Cyclone security plugins / no openssl: printed loudly).
 #   security_test.sh RUNTIME_EXE MONITOR_EXE CONFIG_DIR KEYSTORE_SH WORK_DIR
 set -u
@@ -148,5 +150,26 @@ daemon_pid=
 check "daemon ended by the e-stop (its exit status)" 5 "$st" "$work/daemon.log"
 contains "daemon: exactly the operator's stop and the e-stop were executed" "$work/daemon.log" \
   "events: 2 faults, warnings, holds and operator commands"
+
+# Signing instead of encryption (keystore.sh init --protection SIGN): the governance says so, the
+# daemon's start line reports it and an authorized monitor reads the telemetry.
+signed=$work/signed_keystore
+{
+  "$keystore" init "$signed" --protection SIGN &&
+  "$keystore" robot "$signed" demo --domain "$domain" &&
+  "$keystore" monitor "$signed" /pedalwave/screen --domain "$domain"
+} >"$work/signed_keystore.log" 2>&1
+check "keystore.sh made a SIGN keystore (exit status)" 0 $? "$work/signed_keystore.log"
+sed "s|^  keystore: $ks\$|  keystore: $signed|" "$work/demo.yaml" >"$work/signed.yaml"
+env -u CYCLONEDDS_URI "$rt" -c "$work/signed.yaml" --duration 60 >"$work/signed_daemon.log" 2>&1 &
+daemon_pid=$!
+env -u CYCLONEDDS_URI "$mon" --robot demo --domain "$domain" --localhost-only --security-keystore "$signed" \
+  --security-enclave /pedalwave/screen --once --duration 20 >"$work/signed_screen.log" 2>&1
+check "SIGN governance: monitor identity gets a complete snapshot (exit status)" 0 $? "$work/signed_screen.log"
+contains "... of the robot" "$work/signed_screen.log" "robot \"demo\"  driver sim"
+contains "... whose start line says the data are signed" "$work/signed_daemon.log" "keystore $signed, data protection SIGN"
+cleanup
+daemon_pid=
+
 [ "$fail" = 0 ] && echo "security test: all checks passed" || echo "security test: FAILED"
 exit "$fail"

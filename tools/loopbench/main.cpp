@@ -7,6 +7,9 @@
 //   off    telemetry off (the consumer drains the rings into no sink)
 //   full   DdsTelemetry on lo, all four state topics at the loop rate (decimation 1)
 //   demo   DdsTelemetry on lo at the demo's decimation (config/runtime/demo.yaml)
+//   full-sec, demo-sec   the same with DDS Security (--security KEYSTORE: enclave
+//          /pedalwave/pedalwave publishes, a second subscriber child /pedalwave/bench_monitor
+//          reads; the keystore's governance, ENCRYPT by default), interleaved with the others
 // for each robot size (--joints, N−1; default 5 and 24: the paper's N = 6 robot and an N = 25 one,
 // an inline copy of the flat high-friction scene with more links). A pedalwave_monitor-like
 // subscriber runs in a child process (this executable, --subscriber-child) on the same domain
@@ -36,6 +39,7 @@
 #include <fstream>
 #include <memory>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -75,9 +79,15 @@ struct CountingListener final : telemetry::TelemetryListener {
   void on_description(const telemetry::DescriptionMsg&, const telemetry::MessageInfo&) override { ++c.descriptions; }
 };
 
-int subscriber_child(std::uint32_t domain) {
+// The enclaves of the secured phases (keystore.sh robot K pedalwave; monitor K
+// /pedalwave/bench_monitor: the same keystore as pedalwave_telemetry_bench --security).
+constexpr const char* kRobotEnclave = "/pedalwave/pedalwave";
+constexpr const char* kMonitorEnclave = "/pedalwave/bench_monitor";
+
+int subscriber_child(std::uint32_t domain, const std::string& keystore) {
   telemetry::SubscriberConfig sc;
   sc.domain_id = domain;
+  if (!keystore.empty()) sc.security = {true, keystore, kMonitorEnclave};
   sc.interface = "lo";
   sc.state_history_depth = 1000;  // as a monitor would: up to 1 s at 1 kHz between polls
   sc.sender = "pedalwave_loopbench";
@@ -117,7 +127,8 @@ int subscriber_child(std::uint32_t domain) {
 // Parent side of the child.
 class SubscriberProcess {
  public:
-  explicit SubscriberProcess(std::uint32_t domain) {
+  // keystore non-empty: the child joins with DDS Security (kMonitorEnclave).
+  SubscriberProcess(std::uint32_t domain, const std::string& keystore) {
     int in[2], out[2];
     if (::pipe2(in, O_CLOEXEC) != 0 || ::pipe2(out, O_CLOEXEC) != 0) throw std::runtime_error("pipe2 failed");
     posix_spawn_file_actions_t fa;
@@ -125,8 +136,8 @@ class SubscriberProcess {
     posix_spawn_file_actions_adddup2(&fa, in[0], STDIN_FILENO);
     posix_spawn_file_actions_adddup2(&fa, out[1], STDOUT_FILENO);
     std::string exe = std::filesystem::read_symlink("/proc/self/exe").string();
-    std::string flag = "--subscriber-child", dom = std::to_string(domain);
-    char* argv[] = {exe.data(), flag.data(), dom.data(), nullptr};
+    std::string flag = "--subscriber-child", dom = std::to_string(domain), ks = keystore;
+    char* argv[] = {exe.data(), flag.data(), dom.data(), ks.empty() ? nullptr : ks.data(), nullptr};
     const int rc = posix_spawn(&pid_, exe.c_str(), &fa, nullptr, argv, environ);
     posix_spawn_file_actions_destroy(&fa);
     ::close(in[0]);
@@ -225,6 +236,7 @@ struct Options {
   int repeat = 1;
   int load_threads = 0;
   std::uint32_t domain = 99;
+  std::string keystore;  // --security: the keystore of the *-sec phases
   bool subscriber = true;
   bool verbose = false;
 };
@@ -233,6 +245,7 @@ struct PhaseResult {
   int joints = 0;
   std::string phase;
   int decimation = 0;  // state-topic decimation, 0 = telemetry off
+  bool secure = false; // DDS Security on (the *-sec phases)
   runtime::RunResult run;
   std::unique_ptr<runtime::LoopMetrics> m;
   std::unique_ptr<runtime::LatencyHistogram> ours;  // read + observe + control per cycle [ns]
@@ -289,11 +302,12 @@ double thread_cpu_seconds() {
 }
 
 PhaseResult run_phase(const Options& o, int joints, const std::string& phase, int decimation,
-                      const std::string& scene_path, SubscriberProcess* sub) {
+                      bool secure, const std::string& scene_path, SubscriberProcess* sub) {
   PhaseResult pr;
   pr.joints = joints;
   pr.phase = phase;
   pr.decimation = decimation;
+  pr.secure = secure;
   config::DaemonConfig cfg = config::parse_daemon_config(
       daemon_yaml(o, scene_path, decimation), "loopbench.yaml",
       std::filesystem::path(scene_path).parent_path().string());
@@ -318,6 +332,7 @@ PhaseResult run_phase(const Options& o, int joints, const std::string& phase, in
     tc.domain_id = cfg.telemetry.domain_id;
     tc.interface = cfg.telemetry.interface;
     tc.decimation = {decimation, decimation, decimation, decimation};
+    if (secure) tc.security = {true, o.keystore, kRobotEnclave};
     runtime::Runtime* rtp = rt.get();
     dds = std::make_unique<telemetry::DdsTelemetry>(
         tc, [rtp](const runtime::OperatorCommand& c) { return rtp->post(c); });
@@ -364,7 +379,7 @@ double us(std::int64_t ns) { return static_cast<double>(ns) * 1e-3; }
 
 std::string label(const PhaseResult& p) {
   if (p.decimation == 0) return "off";
-  return p.phase + " (DDS, 1/" + std::to_string(p.decimation) + ")";
+  return p.phase + " (DDS" + (p.secure ? " secured" : "") + ", 1/" + std::to_string(p.decimation) + ")";
 }
 
 void print_tables(const Options& o, const std::vector<PhaseResult>& rs) {
@@ -414,9 +429,9 @@ void print_tables(const Options& o, const std::vector<PhaseResult>& rs) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc == 3 && std::string(argv[1]) == "--subscriber-child") {
+  if ((argc == 3 || argc == 4) && std::string(argv[1]) == "--subscriber-child") {
     try {
-      return subscriber_child(static_cast<std::uint32_t>(std::stoul(argv[2])));
+      return subscriber_child(static_cast<std::uint32_t>(std::stoul(argv[2])), argc == 4 ? argv[3] : "");
     } catch (const std::exception& e) {
       std::fprintf(stderr, "loopbench subscriber: %s\n", e.what());
       return 1;
@@ -432,13 +447,17 @@ int main(int argc, char** argv) {
   app.add_flag("!--no-mlock", o.lock_memory, "do not mlockall");
   app.add_option("-j,--joints", o.joints, "robot sizes N−1 to run (each a flat scene with N links)")
       ->check(CLI::Range(1, 63))->delimiter(',');
-  app.add_option("--phases", o.phases, "phases: off, full (DDS, every cycle), demo (DDS, demo decimation)")
-      ->check(CLI::IsMember({"off", "full", "demo"}))->delimiter(',');
+  app.add_option("--phases", o.phases, "phases: off, full (DDS, every cycle), demo (DDS, demo decimation), "
+                 "full-sec, demo-sec (the same with DDS Security, --security)")
+      ->check(CLI::IsMember({"off", "full", "demo", "full-sec", "demo-sec"}))->delimiter(',');
   app.add_option("--repeat", o.repeat, "run the phase sequence this many times (interleaved)")->check(CLI::Range(1, 100));
   app.add_option("-b,--load-threads", o.load_threads, "background CPU load threads (SCHED_OTHER) for the whole run")
       ->check(CLI::Range(0, 256));
   app.add_option("--domain", o.domain, "DDS domain id (loopback)")->check(CLI::Range(0, 232));
   app.add_flag("!--no-subscriber", o.subscriber, "no subscriber child process");
+  app.add_option("--security", o.keystore,
+                 "keystore of the full-sec / demo-sec phases (enclaves /pedalwave/pedalwave as robot, "
+                 "/pedalwave/bench_monitor as monitor: tools/scripts/keystore.sh)");
   app.add_flag("-v,--verbose", o.verbose, "print the per-stage table of every phase");
   if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_loopbench")) return *rc;
 
@@ -467,8 +486,15 @@ int main(int argc, char** argv) {
 #endif
                 demo_decimation);
 
-    std::unique_ptr<SubscriberProcess> sub;
-    if (o.subscriber) sub = std::make_unique<SubscriberProcess>(o.domain);
+    bool any_secure = false;
+    for (const auto& phase : o.phases) any_secure = any_secure || phase.ends_with("-sec");
+    if (any_secure && o.keystore.empty())
+      throw std::invalid_argument("--phases full-sec/demo-sec need --security KEYSTORE (tools/scripts/keystore.sh)");
+    // Two subscriber children when secured phases run: a secured participant and a plain one
+    // never match, so each phase is read by the child of its kind.
+    std::unique_ptr<SubscriberProcess> sub, sub_secure;
+    if (o.subscriber) sub = std::make_unique<SubscriberProcess>(o.domain, "");
+    if (o.subscriber && any_secure) sub_secure = std::make_unique<SubscriberProcess>(o.domain, o.keystore);
     std::unique_ptr<BackgroundLoad> load;
     if (o.load_threads > 0) load = std::make_unique<BackgroundLoad>(o.load_threads);
     runtime::install_stop_signal_handlers();
@@ -481,8 +507,9 @@ int main(int argc, char** argv) {
         std::ofstream(scene) << scene_yaml(joints + 1);
         for (const auto& phase : o.phases) {
           if (runtime::pending_stop_signal() != 0) break;
-          const int dec = phase == "off" ? 0 : phase == "full" ? 1 : demo_decimation;
-          PhaseResult pr = run_phase(o, joints, phase, dec, scene, sub.get());
+          const bool secure = phase.ends_with("-sec");
+          const int dec = phase == "off" ? 0 : phase.starts_with("full") ? 1 : demo_decimation;
+          PhaseResult pr = run_phase(o, joints, phase, dec, secure, scene, secure ? sub_secure.get() : sub.get());
           if (!warned) {
             std::printf("rt setup: %s\n", pr.run.rt.describe().c_str());
             for (const auto& w : pr.run.rt.warnings)

@@ -17,6 +17,8 @@ pkgs+=(libwebsockets-dev nlohmann-json3-dev)
 # DDS Security: the keystore checks (libssl-dev) and tools/scripts/keystore.sh (openssl); the
 # Cyclone security plugins come with libddsc0debian.
 pkgs+=(libssl-dev openssl)
+# The sros2 interop test (tests/telemetry/sros2): sros2's keystore API runs on these.
+pkgs+=(python3-cryptography python3-lxml)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

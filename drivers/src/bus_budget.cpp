@@ -6,7 +6,7 @@
 
 #include "pedalwave/drivers/can_protocol.hpp"
 #include "pedalwave/drivers/dynamixel.hpp"
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 
 namespace pedalwave::drivers {
 namespace {

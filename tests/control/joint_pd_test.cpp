@@ -79,7 +79,7 @@ TEST(JointPd, FillCommandForBothPlacements) {
   EXPECT_FALSE(module.torque_off);
 }
 
-// The module's law (drivers/io.hpp) with the module-side fields is P-33 plus the feed-forward:
+// The module's law (interface/io.hpp) with the module-side fields is P-33 plus the feed-forward:
 // both placements give the same torque at the sampling instant.
 TEST(JointPd, ModuleLawEqualsHostLawAtTheSample) {
   const double Kp = 30.0, KD = 15.0, beta = 0.21, beta_dot = -0.7, ad = 0.15, add = 0.33, ff = 0.05;

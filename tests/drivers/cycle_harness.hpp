@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 
 namespace pedalwave::test {
 

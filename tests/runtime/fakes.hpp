@@ -9,7 +9,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/runtime/runtime.hpp"
 
 namespace pedalwave::test {

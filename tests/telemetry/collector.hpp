@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "pedalwave/runtime/telemetry_sink.hpp"
+#include "pedalwave/interface/telemetry_sink.hpp"
 #include "pedalwave/telemetry/subscriber.hpp"
 
 namespace pedalwave::test {

@@ -3,7 +3,7 @@
 #pragma once
 
 #include "pedalwave/control/gait_controller.hpp"
-#include "pedalwave/runtime/stages.hpp"
+#include "pedalwave/interface/stages.hpp"
 
 namespace pedalwave::app {
 

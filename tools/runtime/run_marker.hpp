@@ -15,7 +15,7 @@
 #include <filesystem>
 #include <string>
 
-#include "pedalwave/runtime/telemetry_sink.hpp"
+#include "pedalwave/interface/telemetry_sink.hpp"
 
 namespace pedalwave::app {
 

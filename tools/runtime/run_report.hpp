@@ -31,7 +31,7 @@
 #include <string_view>
 
 #include "pedalwave/config/daemon.hpp"
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/runtime/histogram.hpp"
 #include "pedalwave/runtime/run_events.hpp"
 #include "pedalwave/runtime/runtime.hpp"

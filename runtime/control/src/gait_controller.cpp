@@ -164,7 +164,7 @@ std::uint32_t GaitController::update(double t, double dt, const Measurement& m,
     const double deflection = sizes_ok ? m.deflection[i] : 0.0;
 
     // 1. Measured SEA torque Q_e = K (α − β) = −K · (β − α).
-    out.Q_e[i] = -K_[i] * deflection;
+    out.Q_e[i] = generalized_spring_force(K_[i], deflection);
 
     if (frozen) {
       // 2–3 (frozen). Hold the last running update's Π and α^d exactly, with zero rates.

@@ -10,7 +10,7 @@
 #include <string_view>
 #include <vector>
 
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 
 namespace pedalwave::control::detail {
 

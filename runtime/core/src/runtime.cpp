@@ -457,9 +457,7 @@ void Runtime::control(double t, double dt, Stamps& at) {
   // What the modules will apply at this measurement (the module PD law), for telemetry.
   for (int j = 0; j < joints_; ++j) {
     const auto js = static_cast<std::size_t>(j);
-    sample_.u[js] = cmd_.torque_off ? 0.0
-                                    : cmd_.tau[js] + cmd_.kp[js] * (cmd_.beta_ref[js] - fb_.beta[js]) +
-                                          cmd_.kd[js] * (cmd_.beta_dot_ref[js] - fb_.beta_dot[js]);
+    sample_.u[js] = drivers::module_torque(cmd_, js, fb_.beta[js], fb_.beta_dot[js]);
   }
 }
 
@@ -721,8 +719,8 @@ void Runtime::fill_measured(const drivers::Feedback& fb) noexcept {
     sample_.beta[js] = fb.beta[js];
     sample_.beta_dot[js] = fb.beta_dot[js];
     sample_.deflection[js] = fb.deflection[js];
-    sample_.alpha[js] = fb.beta[js] - fb.deflection[js];
-    sample_.tau_sea[js] = cfg_.description.spring_stiffness[js] * fb.deflection[js];
+    sample_.alpha[js] = link_angle(fb.beta[js], fb.deflection[js]);
+    sample_.tau_sea[js] = spring_torque(cfg_.description.spring_stiffness[js], fb.deflection[js]);
   }
 }
 

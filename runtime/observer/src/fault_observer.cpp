@@ -269,7 +269,7 @@ namespace {
 
 // ∫u dt over a piece [0, L] of an interval during which module command c acted, from the motor
 // state (β, β̇) at the piece's ends: the module law u = c0 − k_p β − k_d β̇ with
-// c0 = τ + k_p β_ref + k_d β̇_ref (drivers/io.hpp); the k_d term is exact, the k_p term
+// c0 = τ + k_p β_ref + k_d β̇_ref (interface/io.hpp); the k_d term is exact, the k_p term
 // trapezoidal; with a torque limit the clamped law is integrated trapezoidally.
 double law_integral(const Command& c, std::size_t k, double L, double ba, double bda, double bb,
                     double bdb, double u_max) noexcept {

@@ -3,7 +3,7 @@
 #pragma once
 
 #include "Telemetry.h"
-#include "pedalwave/runtime/telemetry_sink.hpp"
+#include "pedalwave/interface/telemetry_sink.hpp"
 #include "pedalwave/telemetry/config.hpp"
 #include "pedalwave/telemetry/messages.hpp"
 

@@ -23,7 +23,7 @@
 #include <array>
 #include <cstdint>
 
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/wire.hpp"
 
 namespace pedalwave::drivers::can {

@@ -14,7 +14,7 @@
 #include <cstdint>
 #include <span>
 
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/wire.hpp"
 
 namespace pedalwave::drivers::dxl {

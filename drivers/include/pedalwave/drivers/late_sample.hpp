@@ -11,7 +11,7 @@
 #include <cstdint>
 
 #include "pedalwave/drivers/answer_log.hpp"
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/module_clock.hpp"
 #include "pedalwave/drivers/wire.hpp"
 

@@ -37,7 +37,7 @@
 #include <random>
 
 #include "pedalwave/drivers/dynamixel.hpp"
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/wire.hpp"
 
 namespace pedalwave::drivers {

@@ -31,7 +31,7 @@
 #include <vector>
 
 #include "pedalwave/drivers/dynamixel.hpp"
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/late_sample.hpp"
 #include "pedalwave/drivers/module_clock.hpp"
 #include "pedalwave/drivers/rolling_counter.hpp"

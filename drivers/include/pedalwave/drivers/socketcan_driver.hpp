@@ -39,7 +39,7 @@
 #include <string>
 
 #include "pedalwave/drivers/can_protocol.hpp"
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/late_sample.hpp"
 #include "pedalwave/drivers/module_clock.hpp"
 #include "pedalwave/drivers/rolling_counter.hpp"

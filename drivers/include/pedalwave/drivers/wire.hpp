@@ -6,7 +6,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 
 namespace pedalwave::drivers::wire {
 

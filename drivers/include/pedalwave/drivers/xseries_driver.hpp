@@ -38,7 +38,7 @@
 #include <vector>
 
 #include "pedalwave/drivers/dynamixel.hpp"
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/serial_driver.hpp"
 
 namespace pedalwave::drivers {

@@ -26,7 +26,7 @@
 #include <vector>
 
 #include "pedalwave/drivers/fault_injector.hpp"
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/sim_driver.hpp"
 #include "pedalwave/model/scene.hpp"
 

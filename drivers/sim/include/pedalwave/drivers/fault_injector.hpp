@@ -28,7 +28,7 @@
 #include <string_view>
 #include <vector>
 
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/model/plant.hpp"
 #include "pedalwave/model/scene.hpp"
 

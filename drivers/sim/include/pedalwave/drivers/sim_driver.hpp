@@ -22,7 +22,7 @@
 #include <thread>
 #include <vector>
 
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/model/plant.hpp"
 
 namespace pedalwave::drivers {

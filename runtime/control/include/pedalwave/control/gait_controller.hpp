@@ -34,7 +34,7 @@
 #include "pedalwave/control/joint_pd.hpp"
 #include "pedalwave/control/stability.hpp"
 #include "pedalwave/control/types.hpp"
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 
 namespace pedalwave::control {
 

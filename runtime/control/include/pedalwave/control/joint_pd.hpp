@@ -10,7 +10,7 @@
 //             see stability.hpp (T < 2 J / K_D is necessary; ≈ 0.43 ms for the defaults, i.e.
 //             1 kHz is UNSTABLE) — GaitController refuses an unstable host-side configuration.
 //  - kModule: the module applies u_j = tau_j + kp_j (beta_ref_j − β_j) + kd_j (beta_dot_ref_j − β̇_j)
-//             at its own internal rate (drivers/io.hpp), with beta_ref = α^d, beta_dot_ref = α̇^d,
+//             at its own internal rate (interface/io.hpp), with beta_ref = α^d, beta_dot_ref = α̇^d,
 //             kp = K_p, kd = K_D, tau = the (limited) feed-forward torque (0 for the paper's law).
 //             This is the same law, so both placements agree at the sampling instants.
 // Limits are applied last (after PD + feed-forward): |u_j| ≤ tau_max_j, then
@@ -25,7 +25,7 @@
 #include <vector>
 
 #include "pedalwave/control/types.hpp"
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 
 namespace pedalwave::control {
 

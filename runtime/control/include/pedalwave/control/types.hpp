@@ -5,7 +5,7 @@
 #include <array>
 #include <cstdint>
 
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 
 namespace pedalwave::control {
 

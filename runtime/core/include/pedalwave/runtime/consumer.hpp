@@ -15,7 +15,7 @@
 #include "pedalwave/runtime/histogram.hpp"
 #include "pedalwave/runtime/run_events.hpp"
 #include "pedalwave/runtime/runtime.hpp"
-#include "pedalwave/runtime/telemetry_sink.hpp"
+#include "pedalwave/interface/telemetry_sink.hpp"
 
 namespace pedalwave::runtime {
 

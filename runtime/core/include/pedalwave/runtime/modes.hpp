@@ -16,7 +16,7 @@
 
 #include <cstdint>
 
-#include "pedalwave/runtime/sample.hpp"
+#include "pedalwave/interface/sample.hpp"
 
 namespace pedalwave::runtime {
 

@@ -14,8 +14,8 @@
 #include <string>
 #include <vector>
 
-#include "pedalwave/runtime/sample.hpp"
-#include "pedalwave/runtime/stages.hpp"
+#include "pedalwave/interface/sample.hpp"
+#include "pedalwave/interface/stages.hpp"
 
 namespace pedalwave::runtime {
 

@@ -30,15 +30,15 @@
 #include <cstdint>
 #include <string>
 
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/runtime/histogram.hpp"
 #include "pedalwave/runtime/loop_clock.hpp"
 #include "pedalwave/runtime/modes.hpp"
 #include "pedalwave/runtime/rt_setup.hpp"
-#include "pedalwave/runtime/sample.hpp"
+#include "pedalwave/interface/sample.hpp"
 #include "pedalwave/runtime/spsc_ring.hpp"
-#include "pedalwave/runtime/stages.hpp"
-#include "pedalwave/runtime/telemetry_sink.hpp"
+#include "pedalwave/interface/stages.hpp"
+#include "pedalwave/interface/telemetry_sink.hpp"
 
 namespace pedalwave::runtime {
 

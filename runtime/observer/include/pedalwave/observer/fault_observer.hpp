@@ -10,7 +10,7 @@
 //    is terrain-independent. The coupling n I_r θ̈_j (θ_j the stator link's absolute angle, not
 //    measured) is left as a bounded disturbance: it is 1/n of the rotor spin term's size
 //    (|n I_r θ̈| ≈ 1.3e-5 kg·m² · |θ̈|, ≤ 1e-3 N·m for |θ̈| ≤ 80 rad/s²; README).
-//    Applied torque: the host knows the module's law (drivers/io.hpp, Command) and the measured β,
+//    Applied torque: the host knows the module's law (interface/io.hpp, Command) and the measured β,
 //    β̇; with module-side PD the module applies u(t) = τ + k_p(β_ref − β(t)) + k_d(β̇_ref − β̇(t))
 //    continuously between samples (ASSUMPTION: the module runs its law on the same β it reports,
 //    much faster than the host rate, with the last command held, clamped to ±u_max when configured).
@@ -55,9 +55,9 @@
 #include <cstdint>
 #include <memory>
 
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/model/plant.hpp"
-#include "pedalwave/runtime/sample.hpp"
+#include "pedalwave/interface/sample.hpp"
 
 namespace pedalwave::observer {
 

@@ -5,7 +5,7 @@
 #pragma once
 
 #include "pedalwave/observer/fault_observer.hpp"
-#include "pedalwave/runtime/stages.hpp"
+#include "pedalwave/interface/stages.hpp"
 
 namespace pedalwave::observer {
 

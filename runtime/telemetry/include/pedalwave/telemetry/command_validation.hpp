@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "pedalwave/runtime/telemetry_sink.hpp"
+#include "pedalwave/interface/telemetry_sink.hpp"
 #include "pedalwave/telemetry/config.hpp"
 
 namespace pedalwave::telemetry {

@@ -45,7 +45,7 @@
 #include <functional>
 #include <memory>
 
-#include "pedalwave/runtime/telemetry_sink.hpp"
+#include "pedalwave/interface/telemetry_sink.hpp"
 #include "pedalwave/telemetry/config.hpp"
 
 namespace pedalwave::telemetry {

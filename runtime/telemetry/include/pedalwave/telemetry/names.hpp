@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <string>
 
-#include "pedalwave/runtime/telemetry_sink.hpp"
+#include "pedalwave/interface/telemetry_sink.hpp"
 
 namespace pedalwave::telemetry {
 

@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "pedalwave/runtime/telemetry_sink.hpp"
+#include "pedalwave/interface/telemetry_sink.hpp"
 #include "pedalwave/telemetry/messages.hpp"
 
 namespace pedalwave::telemetry {

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "pedalwave/runtime/telemetry_sink.hpp"
+#include "pedalwave/interface/telemetry_sink.hpp"
 #include "pedalwave/telemetry/config.hpp"
 #include "pedalwave/telemetry/messages.hpp"
 

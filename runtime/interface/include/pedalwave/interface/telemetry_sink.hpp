@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <type_traits>
 
-#include "pedalwave/runtime/sample.hpp"
+#include "pedalwave/interface/sample.hpp"
 
 namespace pedalwave::runtime {
 

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <type_traits>
 
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 
 namespace pedalwave::runtime {
 

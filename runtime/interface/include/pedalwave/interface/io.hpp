@@ -4,7 +4,10 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
+
+#include "pedalwave/interface/sea.hpp"
 
 namespace pedalwave::drivers {
 
@@ -85,6 +88,13 @@ struct Command {
   std::array<double, kMaxJoints> kd{};           // module damping gain [N·m·s/rad], (N-1)
   bool torque_off = false;                       // safe torque off: every module output disabled
 };
+
+// The torque command c makes module j apply at (β, β̇): the module law (sea.hpp), 0 with torque
+// off (before any limit the module applies).
+constexpr double module_torque(const Command& c, std::size_t j, double beta, double beta_dot) noexcept {
+  return c.torque_off ? 0.0
+                      : module_law(c.tau[j], c.kp[j], c.beta_ref[j], c.kd[j], c.beta_dot_ref[j], beta, beta_dot);
+}
 
 // The commands the host wrote recently: a non-owning view of a ring indexed by seq % capacity
 // (the runtime keeps it; Runtime::kCommandHistory entries). A single Command converts to a view of

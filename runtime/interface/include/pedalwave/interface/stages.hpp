@@ -10,9 +10,9 @@
 #include <array>
 #include <cstdint>
 
-#include "pedalwave/drivers/io.hpp"
-#include "pedalwave/runtime/sample.hpp"
-#include "pedalwave/runtime/telemetry_sink.hpp"
+#include "pedalwave/interface/io.hpp"
+#include "pedalwave/interface/sample.hpp"
+#include "pedalwave/interface/telemetry_sink.hpp"
 
 namespace pedalwave::runtime {
 

@@ -14,7 +14,7 @@ using namespace pedalwave::model;
 
 Params read_robot(const Reader& r) {
   r.allow_only({"N", "m_l", "link_length", "I_l", "m_r", "I_r", "n", "K", "g", "joints",
-                "rigid_variant"});
+                "rigid_variant", "link_shape", "link_radius", "link_height"});
   // Ranges: what a snake robot of SEA modules can be (far outside them the integrators overflow
   // within the first steps, e.g. K = 1e308).
   Params p = paper_params(static_cast<int>(r.integer("N", 6, kMinLinks, kMaxLinks)));
@@ -41,6 +41,20 @@ Params read_robot(const Reader& r) {
   if (r.has("rigid_variant") && p.joints == JointModel::kFlexible)
     r["rigid_variant"].fail("joints: rigid beside it (rigid_variant chooses between the rigid "
                             "model's equations; these joints are flexible)");
+  // The module's contact geometry (README "Link shapes"): its size is required with its shape and
+  // refused with another one (it would be ignored).
+  const std::string shape = r.choice("link_shape", "segment", {"segment", "capsule", "box"});
+  p.link_shape = shape == "capsule" ? LinkShape::kCapsule : shape == "box" ? LinkShape::kBox : LinkShape::kSegment;
+  if (p.link_shape == LinkShape::kCapsule)
+    r.required("link_radius", "the capsule's radius [m] with link_shape: capsule");
+  if (p.link_shape == LinkShape::kBox)
+    r.required("link_height", "the module's height [m] with link_shape: box");
+  p.link_radius = r.bounded("link_radius", 0.0, 0, 1, "m", true);
+  p.link_height = r.bounded("link_height", 0.0, 0, 2, "m", true);
+  if (r.has("link_radius") && p.link_shape != LinkShape::kCapsule)
+    r["link_radius"].fail("link_shape: capsule beside it (the radius of a capsule link; the shape is " + shape + ")");
+  if (r.has("link_height") && p.link_shape != LinkShape::kBox)
+    r["link_height"].fail("link_shape: box beside it (the height of a box link; the shape is " + shape + ")");
   return p;
 }
 

@@ -173,6 +173,7 @@ void Plant::add_contact(int k_a, int k_b, double s, const Vec2& n, double depth,
   }
   if (report) {
     report->max_penetration = std::max(report->max_penetration, depth);
+    report->elastic_energy += 0.5 * g.k * depth * depth;
     if (fN > 0) ++report->active;
     const int k = s > 0.5 ? k_b : k_a;
     report->f_normal(k) += fN;
@@ -344,6 +345,7 @@ void Plant::add_shape_contact(const ShapePoint& c, const Vec2& n, double depth, 
   if (c.w > 0) add_link_torque(m, c.lb, c.w * tau, Q);
   if (report) {
     report->max_penetration = std::max(report->max_penetration, depth);
+    report->elastic_energy += 0.5 * g.k * depth * depth;
     if (fN > 0) ++report->active;
     const int k = c.s > 0.5 ? c.kb : c.ka;
     report->f_normal(k) += fN;
@@ -688,6 +690,7 @@ void Plant::report(const VectorXd& q, const VectorXd& v, ContactReport& out) {
   out.f_tangent = VectorXd::Zero(model_.points());
   out.max_penetration = 0.0;
   out.active = 0;
+  out.elastic_energy = 0.0;
   update_kinematics(model_, data_, q, v);
   Q_.setZero();
   contact_forces(q, v, Q_, nullptr, &out);

@@ -59,6 +59,7 @@ struct ContactReport {
   VectorXd f_tangent;     // tangential force per body point [N], (2N+1)
   double max_penetration = 0.0;  // deepest penetration of any point/corner [m]
   int active = 0;               // contacts carrying force
+  double elastic_energy = 0.0;  // Σ ½ k δ² over every contact's penetration δ [J]
 };
 
 class Plant final : public System {

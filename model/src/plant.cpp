@@ -285,12 +285,14 @@ void Plant::contact_forces(const VectorXd& q, const VectorXd& v, Eigen::Ref<Vect
 // Geometry (README "Link shapes"), link i from A = p_2i to B = p_2i+2, axis u_i, normal ν_i:
 //   capsule: the 2N+1 body points are the centres of spheres of radius r (the capsule's closest
 //            points to a flat face are among them: its ends, and the COMs of a link lying flat);
-//            each is tested against the ground and the boxes' faces, the contact point offset by r
-//            along the face's normal (a joint's sphere belongs to both links: ½ + ½). A box's top
-//            corner against a capsule: the distance from the corner to the axis segment minus r,
-//            inside the link (0 < s < 1), else against the sphere of the tip or joint it is
-//            nearest (unless a neighbouring link's inside already sees it: one contact).
-//            r → 0 gives the segment's contacts (tests/model/test_shapes.cpp).
+//            each is tested against the ground and the box (the nearest point of its top and side
+//            faces, which run down into the ground), the contact point offset by r along the
+//            normal (a joint's sphere belongs to both links: ½ + ½). A box's top corner against
+//            each link: r minus the distance from the corner to the axis segment (signed inside the
+//            link, as the segment's corner test; its end caps included). Every depth is continuous;
+//            where a sphere and a link both see a corner (near a COM, a joint) the corner acts
+//            through both (stiffer there, up to 3 k at a joint, same statics). r → 0 gives the
+//            segment's contacts (tests/model/test_shapes.cpp).
 //   box:     the 4 corners A ± (h_m/2) ν, B ± (h_m/2) ν of each link against the ground and the
 //            boxes' faces; a box's top corner inside a link's rectangle is pushed out through the
 //            nearer long face (the chain's two end faces too).
@@ -440,12 +442,6 @@ void Plant::shape_contacts(const VectorXd& v, Eigen::Ref<VectorXd> Q, ImplicitTe
       if (d_right < depth) depth = d_right, n = Vec2(1, 0);
       return true;
     };
-    // Corner c's projection on link i's axis strictly inside the link (0 < s < 1).
-    auto projects_inside = [&](int i, const Vec2& c) {
-      const Vec2 A = pos(2 * i), ab = pos(2 * i + 2) - A;
-      const double s = (c - A).dot(ab) / ab.squaredNorm();
-      return s > 0.0 && s < 1.0;
-    };
     if (capsule) {
       for (int k = 0; k < P; ++k) {
         const Vec2 a = pos(k);
@@ -463,38 +459,49 @@ void Plant::shape_contacts(const VectorXd& v, Eigen::Ref<VectorXd> Q, ImplicitTe
         const double dist = d.norm();
         if (!(dist < r) || dist == 0.0) continue;
         n = d / dist;
-        double mu = b.mu;
-        if (c.y() == z1 && (c.x() == x0 || c.x() == x1) && b.corner_contact) {
-          // A top corner against a tip's or joint's sphere; a COM's is its link's inside contact,
-          // and so is a joint's when a neighbouring link's inside sees the corner.
-          if (k % 2 == 1) continue;
-          if (k > 0 && projects_inside(k / 2 - 1, c)) continue;
-          if (k < 2 * N && projects_inside(k / 2, c)) continue;
-          mu = edge_mu;
-        }
-        add_shape_contact(on_point(k, -r * n), n, r - dist, mu, v, Q, jac, report);
+        const bool at_corner = c.y() == z1 && (c.x() == x0 || c.x() == x1);
+        add_shape_contact(on_point(k, -r * n), n, r - dist, at_corner && b.corner_contact ? edge_mu : b.mu, v,
+                          Q, jac, report);
       }
       if (!b.corner_contact) continue;
+      // The top corners against each link's capsule: r minus the distance from the corner to the
+      // axis segment (its end caps included, so the depth is continuous along the chain).
       for (const Vec2& c : corners) {
         for (int i = 0; i < N; ++i) {
           const Vec2 A = pos(2 * i), B = pos(2 * i + 2);
-          if (c.x() < std::min(A.x(), B.x()) - r || c.x() > std::max(A.x(), B.x()) + r) continue;
+          // Broad phase: the corner is at most max(r, cap) off the axis when it counts.
+          const double reach = std::max(r, cap);
+          if (c.x() < std::min(A.x(), B.x()) - reach || c.x() > std::max(A.x(), B.x()) + reach ||
+              c.y() < std::min(A.y(), B.y()) - reach || c.y() > std::max(A.y(), B.y()) + reach)
+            continue;
           const Vec2 ab = B - A;
           const double len2 = ab.squaredNorm();
           const double s = (c - A).dot(ab) / len2;
-          if (s <= 0.0 || s >= 1.0) continue;
-          Vec2 n(-ab.y(), ab.x());
-          n /= std::sqrt(len2);
-          if (n.dot(c - centre) < 0) n = -n;  // away from the box interior
-          const double past = (c - A).dot(n);  // how far the axis is past the corner
-          if (past + r <= 0 || past > cap) continue;
           ShapePoint sp;
-          sp.ka = 2 * i;
-          sp.kb = 2 * i + 2;
-          sp.s = s;
-          sp.r = -r * n;
           sp.la = sp.lb = i;
-          add_shape_contact(sp, n, past + r, edge_mu, v, Q, jac, report);
+          Vec2 n;
+          double depth;
+          if (s > 0.0 && s < 1.0) {
+            n = Vec2(-ab.y(), ab.x()) / std::sqrt(len2);
+            if (n.dot(c - centre) < 0) n = -n;  // away from the box interior
+            const double past = (c - A).dot(n);  // how far the axis is past the corner
+            if (past + r <= 0 || past > cap) continue;
+            depth = past + r;
+            sp.ka = 2 * i;
+            sp.kb = 2 * i + 2;
+            sp.s = s;
+          } else {  // an end's cap
+            sp.ka = sp.kb = s <= 0.0 ? 2 * i : 2 * i + 2;
+            const Vec2 e = pos(sp.ka);
+            if (e.x() > x0 && e.x() < x1 && e.y() < z1) continue;  // inside: its sphere's face contact
+            const Vec2 d = e - c;
+            const double dist = d.norm();
+            if (!(dist < r) || dist == 0.0) continue;
+            n = d / dist;
+            depth = r - dist;
+          }
+          sp.r = -r * n;
+          add_shape_contact(sp, n, depth, edge_mu, v, Q, jac, report);
         }
       }
       continue;

@@ -12,9 +12,13 @@ namespace pedalwave::config {
 
 using namespace pedalwave::model;
 
-Params read_robot(const Reader& r) {
-  r.allow_only({"N", "m_l", "link_length", "I_l", "m_r", "I_r", "n", "K", "g", "joints",
-                "rigid_variant"});
+Params read_robot(const Reader& r, bool link_shape) {
+  if (link_shape)
+    r.allow_only({"N", "m_l", "link_length", "I_l", "m_r", "I_r", "n", "K", "g", "joints",
+                  "rigid_variant", "link_shape", "link_radius", "link_height"});
+  else
+    r.allow_only({"N", "m_l", "link_length", "I_l", "m_r", "I_r", "n", "K", "g", "joints",
+                  "rigid_variant"});
   // Ranges: what a snake robot of SEA modules can be (far outside them the integrators overflow
   // within the first steps, e.g. K = 1e308).
   Params p = paper_params(static_cast<int>(r.integer("N", 6, kMinLinks, kMaxLinks)));
@@ -41,6 +45,21 @@ Params read_robot(const Reader& r) {
   if (r.has("rigid_variant") && p.joints == JointModel::kFlexible)
     r["rigid_variant"].fail("joints: rigid beside it (rigid_variant chooses between the rigid "
                             "model's equations; these joints are flexible)");
+  if (!link_shape) return p;
+  // The module's contact geometry (README "Link shapes"): its size is required with its shape and
+  // refused with another one (it would be ignored).
+  const std::string shape = r.choice("link_shape", "segment", {"segment", "capsule", "box"});
+  p.link_shape = shape == "capsule" ? LinkShape::kCapsule : shape == "box" ? LinkShape::kBox : LinkShape::kSegment;
+  if (p.link_shape == LinkShape::kCapsule)
+    r.required("link_radius", "the capsule's radius [m] with link_shape: capsule");
+  if (p.link_shape == LinkShape::kBox)
+    r.required("link_height", "the module's height [m] with link_shape: box");
+  p.link_radius = r.bounded("link_radius", 0.0, 0, 1, "m", true);
+  p.link_height = r.bounded("link_height", 0.0, 0, 2, "m", true);
+  if (r.has("link_radius") && p.link_shape != LinkShape::kCapsule)
+    r["link_radius"].fail("link_shape: capsule beside it (the radius of a capsule link; the shape is " + shape + ")");
+  if (r.has("link_height") && p.link_shape != LinkShape::kBox)
+    r["link_height"].fail("link_shape: box beside it (the height of a box link; the shape is " + shape + ")");
   return p;
 }
 
@@ -135,7 +154,7 @@ Scene read_scene(const Reader& r) {
                         })))
     r["name"].fail("a name of 1 … 63 characters, no '/' or control characters");
   (void)r.string("description", "");  // a label: any text, but text
-  if (r.has("robot")) s.robot = read_robot(r["robot"]);
+  if (r.has("robot")) s.robot = read_robot(r["robot"], true);
   s.ground_on = r.has("ground");
   if (s.ground_on) {
     const Reader g = r["ground"];
@@ -148,6 +167,12 @@ Scene read_scene(const Reader& r) {
     s.ground.v_s = g.bounded("v_s", s.ground.v_s, 0, 10, "m/s", true);
     s.ground.k_t = g.bounded("k_t", s.ground.k_t, 0, 1e8, "N/m", true);
     s.ground.friction_at_com = g.boolean("friction_at_com", false);
+    // Thick links keep no stick-slip anchors, and a box link never touches at its COM.
+    if (s.robot.link_shape != LinkShape::kSegment && s.ground.law == FrictionLaw::kStickSlip)
+      g["friction"].fail(std::string("coulomb, regularized or tanh with robot.link_shape: ") +
+                         to_string(s.robot.link_shape) + " (stick_slip's anchors are the segment's body points)");
+    if (s.robot.link_shape == LinkShape::kBox && s.ground.friction_at_com)
+      g["friction_at_com"].fail("false with robot.link_shape: box (a box link touches with its corners, never at its COM)");
     if (g.has("patches")) {
       const Reader ps = g["patches"];
       if (!ps.is_sequence()) ps.fail("a list of {x_begin, mu}");

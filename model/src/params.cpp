@@ -6,6 +6,15 @@
 
 namespace pedalwave::model {
 
+const char* to_string(LinkShape s) {
+  switch (s) {
+    case LinkShape::kSegment: return "segment";
+    case LinkShape::kCapsule: return "capsule";
+    case LinkShape::kBox: return "box";
+  }
+  return "?";
+}
+
 Params paper_params(int N) {
   Params p;
   p.N = N;
@@ -51,6 +60,14 @@ void validate(const Params& p) {
        << " (one per joint) or none (then K_all is used)";
     throw std::invalid_argument(os.str());
   }
+  require_finite("link_radius", p.link_radius, "m");
+  require_finite("link_height", p.link_height, "m");
+  if (p.link_shape == LinkShape::kCapsule && !(p.link_radius > 0))
+    reject("link_radius", p.link_radius, "m", "the capsule's radius must be > 0 with link_shape capsule");
+  if (p.link_shape == LinkShape::kBox && !(p.link_height > 0))
+    reject("link_height", p.link_height, "m", "the module's height must be > 0 with link_shape box");
+  if (p.link_radius < 0) reject("link_radius", p.link_radius, "m", "must be >= 0");
+  if (p.link_height < 0) reject("link_height", p.link_height, "m", "must be >= 0");
   if (p.joints == JointModel::kFlexible) {
     if (p.I_r == 0)
       reject("I_r", p.I_r, "kg·m²",
@@ -74,6 +91,8 @@ std::string describe(const Params& p) {
      << " kg, I_r=" << p.I_r << " kg·m², n=" << p.n << ", n²I_r=" << p.n * p.n * p.I_r
      << " kg·m², K=" << p.stiffness(0) << " N·m/rad, joints="
      << (p.joints == JointModel::kFlexible ? "flexible" : "rigid");
+  if (p.link_shape == LinkShape::kCapsule) os << ", links: capsule r=" << p.link_radius << " m";
+  if (p.link_shape == LinkShape::kBox) os << ", links: box h_m=" << p.link_height << " m";
   return os.str();
 }
 

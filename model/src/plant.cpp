@@ -42,7 +42,11 @@ Plant::Plant(const Scene& scene)
     VectorXd q, v;
     initial_state(q, v);
     update_kinematics(model_, data_, q, v);
-    const double x_head = point_position(model_, data_, q, model_.point_head()).x();
+    // The head's front: its tip, or the surface ahead of it when the links are thick.
+    double x_head = point_position(model_, data_, q, model_.point_head()).x();
+    if (model_.params().link_shape == LinkShape::kCapsule) x_head += model_.params().link_radius;
+    if (model_.params().link_shape == LinkShape::kBox)
+      x_head += model_.params().half_thickness() * std::abs(data_.sin_t(model_.N() - 1));
     for (Box& b : scene_.boxes)
       if (std::isfinite(b.ahead_of_head)) b.x_near = x_head + b.ahead_of_head;
   }
@@ -82,10 +86,18 @@ void Plant::initial_state(VectorXd& q, VectorXd& v) const {
     }
     q(m.i_theta_N()) = -std::atan2(s, c);
   }
-  // Rest the lowest point on the ground (plus the requested height), whatever the shape.
+  // Rest the lowest point on the ground (plus the requested height), whatever the shape: of the
+  // links' surface when they are thick.
   update_kinematics(m, d, q, VectorXd());
   double z_low = 1e300;
   for (int k = 0; k < m.points(); ++k) z_low = std::min(z_low, point_position(m, d, q, k).y());
+  if (m.params().link_shape == LinkShape::kCapsule) z_low -= m.params().link_radius;
+  if (m.params().link_shape == LinkShape::kBox) {
+    z_low = 1e300;
+    for (int i = 0; i < m.N(); ++i)
+      for (int k : {2 * i, 2 * i + 2})
+        z_low = std::min(z_low, point_position(m, d, q, k).y() - m.params().half_thickness() * std::abs(d.cos_t(i)));
+  }
   const double z_ground = scene_.ground_on ? scene_.ground.z : 0.0;
   q(m.i_pz()) = z_ground - z_low + in.height;
 }
@@ -161,6 +173,7 @@ void Plant::add_contact(int k_a, int k_b, double s, const Vec2& n, double depth,
   }
   if (report) {
     report->max_penetration = std::max(report->max_penetration, depth);
+    report->elastic_energy += 0.5 * g.k * depth * depth;
     if (fN > 0) ++report->active;
     const int k = s > 0.5 ? k_b : k_a;
     report->f_normal(k) += fN;
@@ -173,23 +186,30 @@ void Plant::add_contact(int k_a, int k_b, double s, const Vec2& n, double depth,
       point_jacobian(m, data_, k_b, Jb_);
       Ja_ = (1 - s) * Ja_ + s * Jb_;
     }
-    // One fused pass over the body block (contact never touches the β columns):
-    //   ∂F/∂q −= k Jnᵀ Jn + (f_T/f_N) k Jtᵀ Jn
-    //   ∂F/∂v −= d Jnᵀ Jn + (f_T/f_N) d Jtᵀ Jn − (∂f_T/∂v_t) Jtᵀ Jt
-    // (plain loops: Eigen's dynamic outer products go through its GEMM path, 30 % of a step).
-    const int nb = m.nq1();
-    for (int c = 0; c < nb; ++c) {
-      jn_(c) = n.x() * Ja_(0, c) + n.y() * Ja_(1, c);
-      jt_(c) = t.x() * Ja_(0, c) + t.y() * Ja_(1, c);
-    }
-    const double r = fN > 0 ? fT / fN : 0.0;
-    for (int b = 0; b < nb; ++b) {
-      const double jnb = jn_(b), jtb = jt_(b);
-      for (int a = 0; a < nb; ++a) {
-        const double nn = jn_(a) * jnb, tn = jt_(a) * jnb, tt = jt_(a) * jtb;
-        jac->dFdq(a, b) -= g.k * (nn + r * tn);
-        jac->dFdv(a, b) -= g.d * (nn + r * tn) - dfdv * tt;
-      }
+    add_contact_jacobian(n, fN, fT, dfdv, jac);
+  }
+}
+
+void Plant::add_contact_jacobian(const Vec2& n, double fN, double fT, double dfdv, ImplicitTerms* jac) {
+  const Model& m = model_;
+  const Ground& g = scene_.ground;
+  const Vec2 t(n.y(), -n.x());
+  // One fused pass over the body block (contact never touches the β columns):
+  //   ∂F/∂q −= k Jnᵀ Jn + (f_T/f_N) k Jtᵀ Jn
+  //   ∂F/∂v −= d Jnᵀ Jn + (f_T/f_N) d Jtᵀ Jn − (∂f_T/∂v_t) Jtᵀ Jt
+  // (plain loops: Eigen's dynamic outer products go through its GEMM path, 30 % of a step).
+  const int nb = m.nq1();
+  for (int c = 0; c < nb; ++c) {
+    jn_(c) = n.x() * Ja_(0, c) + n.y() * Ja_(1, c);
+    jt_(c) = t.x() * Ja_(0, c) + t.y() * Ja_(1, c);
+  }
+  const double r = fN > 0 ? fT / fN : 0.0;
+  for (int b = 0; b < nb; ++b) {
+    const double jnb = jn_(b), jtb = jt_(b);
+    for (int a = 0; a < nb; ++a) {
+      const double nn = jn_(a) * jnb, tn = jt_(a) * jnb, tt = jt_(a) * jtb;
+      jac->dFdq(a, b) -= g.k * (nn + r * tn);
+      jac->dFdv(a, b) -= g.d * (nn + r * tn) - dfdv * tt;
     }
   }
 }
@@ -207,6 +227,11 @@ void Plant::contact_forces(const VectorXd& q, const VectorXd& v, Eigen::Ref<Vect
   pts_z_.noalias() = m.point_coeff() * data_.sin_t;
   pts_x_.array() += q(m.i_px());
   pts_z_.array() += q(m.i_pz());
+  // Thick links: their own geometry (nothing of it runs for the segment).
+  if (m.params().link_shape != LinkShape::kSegment) {
+    shape_contacts(v, Q, jac, report);
+    return;
+  }
   auto pos = [&](int k) { return Vec2(pts_x_(k), pts_z_(k)); };
   // Ground: every body point against the plane z = ground.z.
   for (int k = 0; k < P; ++k) {
@@ -251,6 +276,272 @@ void Plant::contact_forces(const VectorXd& q, const VectorXd& v, Eigen::Ref<Vect
         const double depth = (c - A).dot(n);
         if (depth <= 0 || depth > cap) continue;
         add_contact(ka, kb, s, n, depth, std::isnan(b.edge_mu) ? b.mu : b.edge_mu, v, 0.0, -1, Q, jac, report);
+      }
+    }
+  }
+}
+
+// ---- thick links -------------------------------------------------------------------------------
+// Geometry (README "Link shapes"), link i from A = p_2i to B = p_2i+2, axis u_i, normal ν_i:
+//   capsule: the 2N+1 body points are the centres of spheres of radius r (the capsule's closest
+//            points to a flat face are among them: its ends, and the COMs of a link lying flat);
+//            each is tested against the ground and the box (the nearest point of its top and side
+//            faces, which run down into the ground), the contact point offset by r along the
+//            normal (a joint's sphere belongs to both links: ½ + ½). A box's top corner against
+//            each link: r minus the distance from the corner to the axis segment (signed inside the
+//            link, as the segment's corner test; its end caps included). Every depth is continuous;
+//            where a sphere and a link both see a corner (near a COM, a joint) the corner acts
+//            through both (stiffer there, up to 3 k at a joint, same statics). r → 0 gives the
+//            segment's contacts (tests/model/test_shapes.cpp).
+//   box:     the 4 corners A ± (h_m/2) ν, B ± (h_m/2) ν of each link against the ground and the
+//            boxes' faces; a box's top corner inside a link's rectangle is pushed out through the
+//            nearer long face (the chain's two end faces too).
+// Broad phase: a box is tested only when the robot's extent, grown by the thickness, reaches it;
+// a link's corners against the ground only when the link reaches down to it.
+
+Plant::ShapePoint Plant::on_point(int k, const Vec2& r) const {
+  const int N = model_.N();
+  ShapePoint c;
+  c.ka = c.kb = k;
+  c.r = r;
+  if (k % 2 == 1) {
+    c.la = c.lb = (k - 1) / 2;  // a COM
+  } else if (k == 0) {
+    c.la = c.lb = 0;
+  } else if (k == 2 * N) {
+    c.la = c.lb = N - 1;
+  } else {  // joint k/2 − 1 between links k/2 − 1 and k/2
+    c.la = k / 2 - 1;
+    c.lb = k / 2;
+    c.w = 0.5;
+  }
+  return c;
+}
+
+void Plant::add_shape_contact(const ShapePoint& c, const Vec2& n, double depth, double mu,
+                              const VectorXd& v, Eigen::Ref<VectorXd> Q, ImplicitTerms* jac,
+                              ContactReport* report) {
+  const Model& m = model_;
+  const Ground& g = scene_.ground;
+  const Vec2 t(n.y(), -n.x());
+  Vec2 vel = point_velocity(m, data_, v, c.ka);
+  if (c.s > 0) vel = (1 - c.s) * vel + c.s * point_velocity(m, data_, v, c.kb);
+  const double omega = (1 - c.w) * data_.theta_dot(c.la) + c.w * data_.theta_dot(c.lb);
+  vel += omega * Vec2(-c.r.y(), c.r.x());
+  const double depth_rate = -vel.dot(n);
+  const double fN = std::max(g.k * depth + g.d * depth_rate, 0.0);
+  const double vt = vel.dot(t);
+  double dfdv = 0.0;
+  // The paper's option: friction only where a COM touches (capsule: the COMs' spheres).
+  const bool with_friction = !g.friction_at_com || (c.s == 0 && c.ka % 2 == 1);
+  const double fT = with_friction ? friction(mu, fN, vt, 0.0, -1, dfdv) : 0.0;
+  const Vec2 f = fN * n + fT * t;
+  if (c.s > 0) {
+    add_point_force(m, data_, c.ka, (1 - c.s) * f, Q);
+    add_point_force(m, data_, c.kb, c.s * f, Q);
+  } else {
+    add_point_force(m, data_, c.ka, f, Q);
+  }
+  const double tau = c.r.x() * f.y() - c.r.y() * f.x();  // r × f
+  if (c.w < 1) add_link_torque(m, c.la, (1 - c.w) * tau, Q);
+  if (c.w > 0) add_link_torque(m, c.lb, c.w * tau, Q);
+  if (report) {
+    report->max_penetration = std::max(report->max_penetration, depth);
+    report->elastic_energy += 0.5 * g.k * depth * depth;
+    if (fN > 0) ++report->active;
+    const int k = c.s > 0.5 ? c.kb : c.ka;
+    report->f_normal(k) += fN;
+    report->f_tangent(k) += fT;
+  }
+  if (jac && fN > 0) {
+    point_jacobian(m, data_, c.ka, Ja_);
+    if (c.s > 0) {
+      point_jacobian(m, data_, c.kb, Jb_);
+      Ja_ = (1 - c.s) * Ja_ + c.s * Jb_;
+    }
+    // The lever: ∂(r)/∂q = J r · ∂θ/∂q, θ_i depending on α_i … α_{N−2} and θ_N (columns i … N−1).
+    const double rx = -c.r.y(), rz = c.r.x();
+    for (int col = std::min(c.la, c.lb); col < m.N(); ++col) {
+      const double w = (col >= c.la ? 1 - c.w : 0.0) + (col >= c.lb ? c.w : 0.0);
+      Ja_(0, col) += w * rx;
+      Ja_(1, col) += w * rz;
+    }
+    add_contact_jacobian(n, fN, fT, dfdv, jac);
+  }
+}
+
+void Plant::shape_contacts(const VectorXd& v, Eigen::Ref<VectorXd> Q, ImplicitTerms* jac,
+                           ContactReport* report) {
+  const Model& m = model_;
+  const Params& p = m.params();
+  const Ground& g = scene_.ground;
+  const int N = m.N(), P = m.points();
+  const bool capsule = p.link_shape == LinkShape::kCapsule;
+  const double r = p.link_radius, hh = p.half_thickness(), len = 2.0 * p.l;
+  auto pos = [&](int k) { return Vec2(pts_x_(k), pts_z_(k)); };
+  auto axis = [&](int i) { return Vec2(data_.cos_t(i), data_.sin_t(i)); };
+  auto normal = [&](int i) { return Vec2(-data_.sin_t(i), data_.cos_t(i)); };
+  // A box link's corner c (0 … 3) of link i: body point and lever.
+  auto corner_of = [&](int i, int c, int& k, Vec2& lever) {
+    k = c < 2 ? 2 * i : 2 * i + 2;
+    lever = (c % 2 == 0 ? hh : -hh) * normal(i);
+  };
+  double z_min = 1e300;
+  for (int k = 0; k < P; ++k) {
+    x_min_ = std::min(x_min_, pts_x_(k));
+    x_max_ = std::max(x_max_, pts_x_(k));
+    z_min = std::min(z_min, pts_z_(k));
+  }
+  x_min_ -= hh;
+  x_max_ += hh;
+  z_min -= hh;
+
+  // Ground: the capsule's spheres, or the box links' corners.
+  if (scene_.ground_on && z_min < g.z) {
+    if (capsule) {
+      for (int k = 0; k < P; ++k) {
+        const double depth = g.z - (pts_z_(k) - r);
+        if (depth > 0)
+          add_shape_contact(on_point(k, Vec2(0, -r)), Vec2(0, 1), depth, mu_at(pts_x_(k)), v, Q, jac, report);
+      }
+    } else {
+      for (int i = 0; i < N; ++i) {
+        if (std::min(pts_z_(2 * i), pts_z_(2 * i + 2)) - hh >= g.z) continue;  // broad phase
+        for (int c = 0; c < 4; ++c) {
+          int k;
+          Vec2 lever;
+          corner_of(i, c, k, lever);
+          const Vec2 x = pos(k) + lever;
+          const double depth = g.z - x.y();
+          if (depth > 0) {
+            ShapePoint sp;
+            sp.ka = sp.kb = k;
+            sp.r = lever;
+            sp.la = sp.lb = i;
+            add_shape_contact(sp, Vec2(0, 1), depth, mu_at(x.x()), v, Q, jac, report);
+          }
+        }
+      }
+    }
+  }
+
+  for (const Box& b : scene_.boxes) {
+    const double x0 = b.x_near, x1 = b.x_near + b.width, z0 = g.z, z1 = g.z + b.height;
+    if (x_max_ < x0 || x_min_ > x1 || z_min > z1) continue;  // broad phase
+    const double edge_mu = std::isnan(b.edge_mu) ? b.mu : b.edge_mu;
+    const double cap = 0.5 * std::min(b.width, b.height);
+    const Vec2 centre(0.5 * (x0 + x1), 0.5 * (z0 + z1));
+    const Vec2 corners[2] = {Vec2(x0, z1), Vec2(x1, z1)};
+    // A point inside the box: out through the nearest face (depth, outward normal).
+    auto inside = [&](const Vec2& x, double& depth, Vec2& n) {
+      if (x.x() <= x0 || x.x() >= x1 || x.y() >= z1 || x.y() <= z0 - 1e-9) return false;
+      const double d_top = z1 - x.y(), d_left = x.x() - x0, d_right = x1 - x.x();
+      n = Vec2(0, 1);
+      depth = d_top;
+      if (d_left < depth) depth = d_left, n = Vec2(-1, 0);
+      if (d_right < depth) depth = d_right, n = Vec2(1, 0);
+      return true;
+    };
+    if (capsule) {
+      for (int k = 0; k < P; ++k) {
+        const Vec2 a = pos(k);
+        if (a.x() < x0 - r || a.x() > x1 + r || a.y() > z1 + r) continue;
+        double depth;
+        Vec2 n;
+        if (inside(a, depth, n)) {
+          add_shape_contact(on_point(k, -r * n), n, depth + r, b.mu, v, Q, jac, report);
+          continue;
+        }
+        if (a.y() < z0) continue;  // below the ground: the ground's
+        // The step's nearest point (its faces run down into the ground).
+        const Vec2 c(std::clamp(a.x(), x0, x1), std::min(a.y(), z1));
+        const Vec2 d = a - c;
+        const double dist = d.norm();
+        if (!(dist < r) || dist == 0.0) continue;
+        n = d / dist;
+        const bool at_corner = c.y() == z1 && (c.x() == x0 || c.x() == x1);
+        add_shape_contact(on_point(k, -r * n), n, r - dist, at_corner && b.corner_contact ? edge_mu : b.mu, v,
+                          Q, jac, report);
+      }
+      if (!b.corner_contact) continue;
+      // The top corners against each link's capsule: r minus the distance from the corner to the
+      // axis segment (its end caps included, so the depth is continuous along the chain).
+      for (const Vec2& c : corners) {
+        for (int i = 0; i < N; ++i) {
+          const Vec2 A = pos(2 * i), B = pos(2 * i + 2);
+          // Broad phase: the corner is at most max(r, cap) off the axis when it counts.
+          const double reach = std::max(r, cap);
+          if (c.x() < std::min(A.x(), B.x()) - reach || c.x() > std::max(A.x(), B.x()) + reach ||
+              c.y() < std::min(A.y(), B.y()) - reach || c.y() > std::max(A.y(), B.y()) + reach)
+            continue;
+          const Vec2 ab = B - A;
+          const double len2 = ab.squaredNorm();
+          const double s = (c - A).dot(ab) / len2;
+          ShapePoint sp;
+          sp.la = sp.lb = i;
+          Vec2 n;
+          double depth;
+          if (s > 0.0 && s < 1.0) {
+            n = Vec2(-ab.y(), ab.x()) / std::sqrt(len2);
+            if (n.dot(c - centre) < 0) n = -n;  // away from the box interior
+            const double past = (c - A).dot(n);  // how far the axis is past the corner
+            if (past + r <= 0 || past > cap) continue;
+            depth = past + r;
+            sp.ka = 2 * i;
+            sp.kb = 2 * i + 2;
+            sp.s = s;
+          } else {  // an end's cap
+            sp.ka = sp.kb = s <= 0.0 ? 2 * i : 2 * i + 2;
+            const Vec2 e = pos(sp.ka);
+            if (e.x() > x0 && e.x() < x1 && e.y() < z1) continue;  // inside: its sphere's face contact
+            const Vec2 d = e - c;
+            const double dist = d.norm();
+            if (!(dist < r) || dist == 0.0) continue;
+            n = d / dist;
+            depth = r - dist;
+          }
+          sp.r = -r * n;
+          add_shape_contact(sp, n, depth, edge_mu, v, Q, jac, report);
+        }
+      }
+      continue;
+    }
+    // Box links: their corners against the box's faces, the box's corners against their faces.
+    for (int i = 0; i < N; ++i) {
+      for (int cc = 0; cc < 4; ++cc) {
+        int k;
+        Vec2 lever;
+        corner_of(i, cc, k, lever);
+        double depth;
+        Vec2 n;
+        if (!inside(pos(k) + lever, depth, n)) continue;
+        ShapePoint sp;
+        sp.ka = sp.kb = k;
+        sp.r = lever;
+        sp.la = sp.lb = i;
+        add_shape_contact(sp, n, depth, b.mu, v, Q, jac, report);
+      }
+    }
+    if (!b.corner_contact) continue;
+    for (const Vec2& c : corners) {
+      for (int i = 0; i < N; ++i) {
+        const Vec2 A = pos(2 * i), u = axis(i), nu = normal(i);
+        const Vec2 rel = c - A;
+        const double s = rel.dot(u), nb = rel.dot(nu);
+        if (s <= 0.0 || s >= len || std::abs(nb) >= hh) continue;
+        // Out through the nearer long face (the link moves away from the corner) …
+        double depth = hh - std::abs(nb);
+        Vec2 n = nb >= 0 ? Vec2(-nu) : Vec2(nu);
+        // … or the chain's end faces.
+        if (i == 0 && s < depth) depth = s, n = u;
+        if (i == N - 1 && len - s < depth) depth = len - s, n = -u;
+        ShapePoint sp;
+        sp.ka = 2 * i;
+        sp.kb = 2 * i + 2;
+        sp.s = s / len;
+        sp.r = nb * nu;
+        sp.la = sp.lb = i;
+        add_shape_contact(sp, n, depth, edge_mu, v, Q, jac, report);
       }
     }
   }
@@ -406,6 +697,7 @@ void Plant::report(const VectorXd& q, const VectorXd& v, ContactReport& out) {
   out.f_tangent = VectorXd::Zero(model_.points());
   out.max_penetration = 0.0;
   out.active = 0;
+  out.elastic_energy = 0.0;
   update_kinematics(model_, data_, q, v);
   Q_.setZero();
   contact_forces(q, v, Q_, nullptr, &out);

@@ -37,6 +37,16 @@ void validate(const Scene& s) {
   positive(s, "duration", s.duration);
   if (s.ground_on) {
     const Ground& g = s.ground;
+    // Thick links (README "Link shapes") keep no stick-slip anchors (those belong to the segment's
+    // body points), and a box link has no contact at its COM for friction_at_com to use.
+    const LinkShape shape = s.robot.link_shape;
+    const std::string where = s.source.empty() ? "scene '" + s.name + "'" : s.source;
+    if (shape != LinkShape::kSegment && g.law == FrictionLaw::kStickSlip)
+      throw std::invalid_argument(where + ": ground.friction = stick_slip: not available with robot.link_shape = " +
+                                  to_string(shape) + " (expected coulomb, regularized or tanh, or link_shape segment)");
+    if (shape == LinkShape::kBox && g.friction_at_com)
+      throw std::invalid_argument(where + ": ground.friction_at_com = true: not available with robot.link_shape = box "
+                                  "(a box link touches with its corners, never at its COM)");
     if (!std::isfinite(g.z)) reject(s, "ground.z", g.z, "expected a finite height [m]");
     positive(s, "ground.k", g.k);
     non_negative(s, "ground.d", g.d);

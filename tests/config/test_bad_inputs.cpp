@@ -127,6 +127,11 @@ const std::vector<KeyRow> kSceneKeys = {
     {"robot.joints", "robot:\n  joints: @\n", "rigid", "[1]", "elastic", "one of flexible, rigid"},
     {"robot.rigid_variant", "robot:\n  joints: rigid\n  rigid_variant: @\n", "paper", "[1]", "printed",
      "one of exact_limit, paper"},
+    {"robot.link_shape", "robot:\n  link_shape: @\n", "segment", "[1]", "round", "one of segment, capsule, box"},
+    {"robot.link_radius", "robot:\n  link_shape: capsule\n  link_radius: @\n", "0.015", "x", "0",
+     "a number in (0, 1] [m]"},
+    {"robot.link_height", "robot:\n  link_shape: box\n  link_height: @\n", "0.03", "x", "-0.03",
+     "a number in (0, 2] [m]"},
     {"ground.z", "ground:\n  z: @\n", "0.1", "low", "1e300", "a number in [-1000, 1000] [m]"},
     {"ground.k", "ground:\n  k: @\n", "1000", "soft", "1e308", "a number in (0, 1e+07] [N/m]"},
     {"ground.d", "ground:\n  d: @\n", "10", "x", "-1", "a number in [0, 100000]"},
@@ -235,6 +240,22 @@ TEST(BadInputs, EmptyFileDirectoryAndDevicesAreRefused) {
 TEST(BadInputs, SceneContradictionsAreRefused) {
   std::string e = scene_error("robot:\n  rigid_variant: paper\n");
   EXPECT_EQ(e.rfind("bad.yaml:2:18: robot.rigid_variant = \"paper\": expected joints: rigid beside it", 0), 0u) << e;
+  // A link's size goes with its shape: required with it, refused with another one.
+  e = scene_error("robot:\n  link_radius: 0.01\n");
+  EXPECT_EQ(e.rfind("bad.yaml:2:16: robot.link_radius = \"0.01\": expected link_shape: capsule beside it", 0), 0u) << e;
+  e = scene_error("robot:\n  link_shape: capsule\n  link_height: 0.03\n");
+  EXPECT_NE(e.find("robot.link_radius: expected the capsule's radius [m] with link_shape: capsule"), std::string::npos) << e;
+  e = scene_error("robot:\n  link_shape: box\n  link_height: 0.03\n  link_radius: 0.01\n");
+  EXPECT_NE(e.find("robot.link_radius = \"0.01\": expected link_shape: capsule beside it (the radius of a capsule "
+                   "link; the shape is box)"), std::string::npos) << e;
+  e = scene_error("robot:\n  link_shape: box\n");
+  EXPECT_NE(e.find("robot.link_height: expected the module's height [m] with link_shape: box"), std::string::npos) << e;
+  // Effects a thick link does not have are refused, naming the key.
+  e = scene_error("robot: {link_shape: capsule, link_radius: 0.01}\nground: {friction: stick_slip}\n");
+  EXPECT_NE(e.find("ground.friction = \"stick_slip\": expected coulomb, regularized or tanh with robot.link_shape: "
+                   "capsule"), std::string::npos) << e;
+  e = scene_error("robot: {link_shape: box, link_height: 0.03}\nground: {friction_at_com: true}\n");
+  EXPECT_NE(e.find("ground.friction_at_com = \"true\": expected false with robot.link_shape: box"), std::string::npos) << e;
   e = scene_error("integrator:\n  method: rk4\n  rtol: 1e-6\n");
   EXPECT_EQ(e.rfind("bad.yaml:3:9: integrator.rtol = \"1e-6\": expected integrator.method: dopri45 beside it", 0), 0u)
       << e;

@@ -175,6 +175,34 @@ TEST_F(SimulateCli, FlatSceneWritesCsvSummaryAndFigures) {
   EXPECT_FALSE(fs::exists(dir_ / "out" / "gait_cycle.svg"));
 }
 
+// Obstacle scenes get the stair events in the summary (simloop/stair_events.hpp, the code
+// pedalwave_paper uses); scenes without a box get none.
+TEST_F(SimulateCli, ObstacleScenesPrintTheStairEvents) {
+  auto stair_line = [](const std::string& text) {
+    const std::size_t at = text.find("\nstair:");
+    return at == std::string::npos ? std::string() : text.substr(at + 1, text.find('\n', at + 1) - at - 1);
+  };
+  // The shipped stair, 1 s: the head lands on the box top at once; the COM is not past it.
+  Result r = run_sim("'" + kScenes + "stair.yaml' --duration 1 --no-plots --out '" + (dir_ / "stair").string() + "'", dir_);
+  ASSERT_EQ(r.code, 0) << r.stderr_text;
+  std::string line = stair_line(r.stdout_text);
+  double t_top = -1;
+  ASSERT_EQ(std::sscanf(line.c_str(), "stair: head on top %lf s, COM past never, whole body past never", &t_top), 1) << line;
+  EXPECT_GT(t_top, 0.0);
+  EXPECT_LT(t_top, 1.0);
+  // A box behind the robot: COM and whole body past it from the start.
+  const fs::path behind = dir_ / "behind.yaml";
+  std::ofstream(behind) << "name: behind\nground: {}\nobstacles:\n  - {x_near: -1.0, width: 0.1, height: 0.02}\n";
+  r = run_sim("'" + behind.string() + "' --duration 0.1 --no-plots --out '" + (dir_ / "behind").string() + "'", dir_);
+  ASSERT_EQ(r.code, 0) << r.stderr_text;
+  line = stair_line(r.stdout_text);
+  EXPECT_EQ(line.rfind("stair:            head on top never, COM past 0 s, whole body past 0 s (box x = -1 … -0.9 m, top 0.02 m)", 0), 0u)
+      << line;
+  r = run_sim("'" + kScenes + "flat_high_friction.yaml' --duration 0.1 --no-plots --out '" + (dir_ / "flat").string() + "'", dir_);
+  ASSERT_EQ(r.code, 0) << r.stderr_text;
+  EXPECT_EQ(stair_line(r.stdout_text), "") << "no box, no stair events";
+}
+
 TEST_F(SimulateCli, RigidJointsHaveNoMotorColumns) {
   const fs::path scene = dir_ / "rigid.yaml";
   std::ofstream(scene) << "name: rigid\nrobot: {N: 4, joints: rigid}\n"

@@ -4,7 +4,9 @@
 //                                             model::forward_dynamics with each solver,
 //                                             N = 2, 6, 16, 32, 64
 //   acceleration/<effects>                    Plant::acceleration with the shipped scenes' effects
-//                                             switched on one at a time (N = 6, module PD input)
+//                                             switched on one at a time (N = 6, module PD input);
+//                                             the link-shape rows (…/capsule, …/box_links) against
+//                                             the segment row they replace ("over")
 //   implicit_terms/<effects>                  Plant::implicit_terms (velocity-implicit Jacobians)
 //   integrator_step/<method>                  one step of each integrator on the flat scene
 // After the runs it prints (stdout) the cost-versus-N table of both solvers with the exponent fitted
@@ -121,6 +123,23 @@ std::vector<EffectCase> effect_cases() {
   reach.boxes[0].ahead_of_head = std::numeric_limits<double>::quiet_NaN();
   reach.boxes[0].x_near = 0.0;
   out.push_back({"ground+box", "ground + box in reach (faces + corner segments)", "ground", reach});
+  // Thick links (README "Link shapes"): the same contacts with the modules' surface, against the
+  // segment rows they replace.
+  auto shaped = [](Scene sc, pedalwave::model::LinkShape shape) {
+    sc.robot.link_shape = shape;
+    if (shape == pedalwave::model::LinkShape::kCapsule) sc.robot.link_radius = 0.015;
+    else sc.robot.link_height = 0.03;
+    return sc;
+  };
+  using pedalwave::model::LinkShape;
+  out.push_back({"ground/capsule", "ground, capsule links r = 1.5 cm", "ground", shaped(flat, LinkShape::kCapsule)});
+  out.push_back({"ground/box_links", "ground, box links h_m = 3 cm", "ground", shaped(flat, LinkShape::kBox)});
+  out.push_back({"ground+box_far/capsule", "ground + box out of reach, capsule links", "ground+box_far",
+                 shaped(stair, LinkShape::kCapsule)});
+  out.push_back({"ground+box/capsule", "ground + box in reach, capsule links", "ground+box",
+                 shaped(reach, LinkShape::kCapsule)});
+  out.push_back({"ground+box/box_links", "ground + box in reach, box links", "ground+box",
+                 shaped(reach, LinkShape::kBox)});
   Scene limits = reach;
   limits.joint_friction_on = true;
   limits.joint_friction.motor_viscous = 0.01;

@@ -68,14 +68,7 @@ RunResult run(const RunSpec& spec) {
   RunResult r;
   r.resolved = sim.plant().scene();
   r.avg_from = t0;
-  const bool has_box = r.resolved.ground_on && !r.resolved.boxes.empty();
-  if (has_box) {
-    const model::Box& b = r.resolved.boxes.front();
-    r.stair.x_near = b.x_near;
-    r.stair.x_far = b.x_near + b.width;
-    r.stair.top = r.resolved.ground.z + b.height;
-    r.stair.max_head_z = -std::numeric_limits<double>::infinity();
-  }
+  simloop::StairWatch stair(r.resolved);
   // Events are checked every 10 ms (cheap against the plant's steps, fine against 1 cm/s).
   const long long per_event = std::max<long long>(1, periods_in(0.01, rate));
   double com_x_from = kNaN;
@@ -93,19 +86,7 @@ RunResult run(const RunSpec& spec) {
     const model::Vec2 head = model::point_position(m, dd, q, m.point_head());
     if (std::isfinite(spec.cross_x) && std::isnan(r.t_head_cross) && head.x() >= spec.cross_x)
       r.t_head_cross = t;
-    if (has_box) {
-      StairEvents& e = r.stair;
-      e.max_head_z = std::max(e.max_head_z, head.y());
-      if (std::isnan(e.t_head_on_top) && head.x() >= e.x_near && head.x() <= e.x_far &&
-          head.y() >= e.top - kOnTopBelow && head.y() <= e.top + kOnTopAbove)
-        e.t_head_on_top = t;
-      if (std::isnan(e.t_com_past) && com.x() > e.x_far) e.t_com_past = t;
-      if (std::isnan(e.t_body_past)) {
-        bool past = true;
-        for (int p = 0; p < P && past; ++p) past = model::point_position(m, dd, q, p).x() > e.x_far;
-        if (past) e.t_body_past = t;
-      }
-    }
+    stair.observe(t, m, dd, q);
     if (sample) {
       Trace& tr = r.trace;
       const model::Vec2 tail = model::point_position(m, dd, q, m.point_tail());
@@ -143,7 +124,7 @@ RunResult run(const RunSpec& spec) {
   r.t_end = sim.t();
   if (std::isfinite(com_x_from) && r.t_end > t0 + 1e-9 && std::isfinite(r.com_x_final))
     r.avg_speed = (r.com_x_final - com_x_from) / (r.t_end - t0);
-  if (has_box && !std::isfinite(r.stair.max_head_z)) r.stair.max_head_z = kNaN;
+  r.stair = stair.events();
   r.steps = sim.integrator().stats().steps;
   r.cpu_s = thread_cpu_s() - cpu0;
   r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();

@@ -20,6 +20,7 @@
 #include "pedalwave/campaign/campaign.hpp"
 #include "pedalwave/model/integrators.hpp"
 #include "pedalwave/model/scene.hpp"
+#include "pedalwave/simloop/stair_events.hpp"
 
 namespace pedalwave::paper {
 
@@ -48,18 +49,10 @@ struct Trace {
   std::vector<std::vector<double>> body_z;      // [sample][point] [m]
 };
 
-// Stair events (first box of the scene); NaN = never happened within the run.
-struct StairEvents {
-  double x_near = kNaN, x_far = kNaN;  // box extent along X [m]
-  double top = kNaN;                   // box top height [m]
-  double t_head_on_top = kNaN;   // head tip on the top face: x_near ≤ x ≤ x_far and
-                                 // top − kOnTopBelow ≤ z ≤ top + kOnTopAbove [s]
-  double t_com_past = kNaN;      // whole-robot COM x > x_far [s]
-  double t_body_past = kNaN;     // every body point x > x_far ("whole body past the box") [s]
-  double max_head_z = kNaN;      // highest head-tip z over the run [m]
-};
-inline constexpr double kOnTopBelow = 0.01;   // [m] contact penetration plus margin
-inline constexpr double kOnTopAbove = 0.005;  // [m] touching, not swinging over it
+// Stair events (first box of the scene): simloop/stair_events.hpp, shared with pedalwave_sim.
+using simloop::kOnTopAbove;
+using simloop::kOnTopBelow;
+using simloop::StairEvents;
 
 struct RunResult {
   model::StepStatus status = model::StepStatus::kOk;  // kOk or the plant failure that stopped it

@@ -178,6 +178,15 @@ RunResult run(const RunConfig& c) {
   plant.report(sim.q(), sim.v(), rep);
   r.max_penetration = r.max_penetration_initial = rep.max_penetration;
   double com_x_from = 0.0;
+  // Stair events, as pedalwave_paper checks them: every 10 ms of simulated time.
+  simloop::StairWatch stair(plant.scene());
+  r.has_box = stair.active();
+  const long long per_event = std::max<long long>(1, periods_in(0.01, c.loop.rate_hz));
+  auto watch = [&] {
+    model::update_kinematics(m, dd, sim.q(), sim.v());
+    stair.observe(sim.t(), m, dd, sim.q());
+  };
+  if (r.has_box) watch();
 
   toolkit::Progress progress(
       "simulating " + c.scene.name, static_cast<std::uint64_t>(n_periods),
@@ -207,6 +216,7 @@ RunResult run(const RunConfig& c) {
     r.e_final = e;
     plant.report(sim.q(), sim.v(), rep);
     r.max_penetration = std::max(r.max_penetration, rep.max_penetration);
+    if (r.has_box && ((k + 1) % per_event == 0 || k + 1 == n_periods)) watch();
     progress.advance();
   }
   if (r.status == model::StepStatus::kOk && n_periods % per_sample == 0) {
@@ -219,6 +229,7 @@ RunResult run(const RunConfig& c) {
   r.t_end = loop.t();
   r.rows = csv.rows_written();
   r.stats = sim.integrator().stats();
+  r.stair = stair.events();
   if (r.status == model::StepStatus::kOk) {
     model::update_kinematics(m, dd, sim.q(), sim.v());
     const double x_end = model::center_of_mass(m, dd, sim.q()).x();
@@ -238,7 +249,10 @@ std::string summary_text(const RunConfig& c, const RunResult& r) {
   os << "scene:            " << c.scene.name << " (" << c.scene.source << ")\n";
   os << "robot:            N = " << p.N << ", "
      << (p.joints == model::JointModel::kFlexible ? "flexible (SEA) joints" : "rigid joints")
-     << ", K = " << p.stiffness(0) << " N·m/rad\n";
+     << ", K = " << p.stiffness(0) << " N·m/rad";
+  if (p.link_shape == model::LinkShape::kCapsule) os << ", capsule links r = " << p.link_radius << " m";
+  if (p.link_shape == model::LinkShape::kBox) os << ", box links h_m = " << p.link_height << " m";
+  os << "\n";
   os << "controller:       ";
   if (c.loop.controller)
     os << "gait (A_p = " << c.scene.gait.A_p << " rad, ω = " << c.scene.gait.omega
@@ -275,6 +289,7 @@ std::string summary_text(const RunConfig& c, const RunResult& r) {
     if (c.scene.joint_friction_on) os << ", joint friction " << r.w_joint_friction;
     os << "; trapezoid per control period)\n";
     os << "max penetration:  " << r.max_penetration * 1000.0 << " mm\n";
+    if (r.has_box) os << "stair:            " << simloop::describe(r.stair) << "\n";
   } else {
     os << "work, penetration: not shown (the run went numerically wrong)\n";
   }

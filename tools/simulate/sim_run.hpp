@@ -11,6 +11,7 @@
 #include "pedalwave/model/plant.hpp"
 #include "pedalwave/model/scene.hpp"
 #include "pedalwave/simloop/closed_loop.hpp"
+#include "pedalwave/simloop/stair_events.hpp"
 
 namespace pedalwave::simulate {
 
@@ -65,6 +66,8 @@ struct RunResult {
   double w_joint_friction = 0.0;  // ∫ b β̇² dt dissipated in the motor bearings [J]
   double max_penetration = 0.0;   // deepest penetration over all control periods [m]
   double max_penetration_initial = 0.0;  // deepest penetration at t = 0 [m]
+  bool has_box = false;           // the scene has an obstacle: stair events below
+  simloop::StairEvents stair;     // its first box's (simloop/stair_events.hpp), checked every 10 ms
   model::IntegratorStats stats;   // plant integrator counters
   double wall_s = 0.0;            // wall time of the simulation loop [s]
   std::filesystem::path csv;      // where the trajectory went

@@ -24,7 +24,9 @@ model::Scene parse_scene(const std::string& text, const std::string& name);
 model::Scene read_scene(const Reader& r);
 
 // Pieces shared with other configuration files.
-model::Params read_robot(const Reader& r);                  // the `robot:` map
+// The `robot:` map; link_shape: also its contact geometry (link_shape, link_radius, link_height:
+// a scene's keys, refused elsewhere).
+model::Params read_robot(const Reader& r, bool link_shape = false);
 model::IntegratorOptions read_integrator(const Reader& r);  // the `integrator:` map
 // The `gait:` map; A_p in [A_p_min, π]: a scene's amplitude may be negative (a phase shift of
 // half a period), the controller's is a magnitude (controller.gait.A_p: A_p_min = 0).

@@ -21,6 +21,15 @@ enum class RigidVariant : std::uint8_t {
   kPaper,       // P-32 as printed: rotor spin through the link rotation only (S_2, S_3 dropped)
 };
 
+// The module's solid around the link axis, for contact only (mass and inertia stay m_l, I_l):
+// model-spec.md §6 and the README's "Link shapes".
+enum class LinkShape : std::uint8_t {
+  kSegment,  // the axis itself, zero thickness: the spec's 2N+1 points + box corners (default)
+  kCapsule,  // every point within link_radius of the axis segment
+  kBox,      // the rectangle 2l long, link_height tall, centred on the axis
+};
+const char* to_string(LinkShape s);
+
 struct Params {
   int N = 6;                   // number of links [-]
   double m_l = 0.1;            // link mass [kg]
@@ -34,7 +43,16 @@ struct Params {
   double g = 9.81;             // gravity [m/s²] (along −Z)
   JointModel joints = JointModel::kFlexible;
   RigidVariant rigid_variant = RigidVariant::kExactLimit;
+  LinkShape link_shape = LinkShape::kSegment;  // contact geometry of each module
+  double link_radius = 0.0;    // capsule radius r [m] (link_shape capsule)
+  double link_height = 0.0;    // box height h_m across the axis [m] (link_shape box)
 
+  // The surface's distance from the axis on either side: 0, r or h_m/2 [m].
+  double half_thickness() const {
+    return link_shape == LinkShape::kCapsule ? link_radius
+           : link_shape == LinkShape::kBox   ? 0.5 * link_height
+                                             : 0.0;
+  }
   // Stiffness of joint j (0-based).
   double stiffness(int j) const { return K.empty() ? K_all : K[static_cast<std::size_t>(j)]; }
 };

@@ -59,6 +59,7 @@ struct ContactReport {
   VectorXd f_tangent;     // tangential force per body point [N], (2N+1)
   double max_penetration = 0.0;  // deepest penetration of any point/corner [m]
   int active = 0;               // contacts carrying force
+  double elastic_energy = 0.0;  // Σ ½ k δ² over every contact's penetration δ [J]
 };
 
 class Plant final : public System {
@@ -117,6 +118,27 @@ class Plant final : public System {
   void add_contact(int k_a, int k_b, double s, const Vec2& n, double depth, double mu,
                    const VectorXd& v, double xt, int slot, Eigen::Ref<VectorXd> Q,
                    ImplicitTerms* jac, ContactReport* report);
+  // The contact's stiff terms on jac from Ja_ (the contact point's Jacobian, 2×nq).
+  void add_contact_jacobian(const Vec2& n, double fN, double fT, double dfdv, ImplicitTerms* jac);
+
+  // Thick links (scene robot.link_shape capsule or box; README "Link shapes"). A contact point is
+  // the material point at (1 − s)·p_ka + s·p_kb + r: the body points k_a, k_b (both on link la,
+  // or k_a = k_b a joint) and a lever r off the axis, carried by link la (weight 1 − w) and link
+  // lb (weight w): its velocity uses the weighted θ̇, its force adds the moment r × f so split.
+  struct ShapePoint {
+    int ka = 0, kb = 0;
+    double s = 0.0;
+    Vec2 r = Vec2::Zero();
+    int la = 0, lb = 0;
+    double w = 0.0;
+  };
+  ShapePoint on_point(int k, const Vec2& r) const;  // a lever r off body point k (joints: ½ + ½)
+  void add_shape_contact(const ShapePoint& c, const Vec2& n, double depth, double mu,
+                         const VectorXd& v, Eigen::Ref<VectorXd> Q, ImplicitTerms* jac,
+                         ContactReport* report);
+  // Every contact of the capsule or box links (after pts_x_, pts_z_ are set).
+  void shape_contacts(const VectorXd& v, Eigen::Ref<VectorXd> Q, ImplicitTerms* jac,
+                      ContactReport* report);
 
   Scene scene_;
   Model model_;

@@ -29,6 +29,7 @@
 #include "pedalwave/drivers/fault_injecting_driver.hpp"
 #include "pedalwave/drivers/serial_driver.hpp"
 #include "pedalwave/drivers/sim_driver.hpp"
+#include "pedalwave/drivers/canopen_driver.hpp"
 #include "pedalwave/drivers/socketcan_driver.hpp"
 #include "pedalwave/model/kinematics.hpp"
 #include "pedalwave/runtime/consumer.hpp"
@@ -116,7 +117,7 @@ OwnedDriver make_driver(const config::DaemonConfig& cfg, double duration) {
       o.base = std::move(sim);
       break;
     }
-    case config::DriverKind::kSocketCan: o.base = drivers::SocketCanDriver::open(d.can); break;
+    case config::DriverKind::kSocketCan: o.base = drivers::open_socketcan(d.can); break;
     case config::DriverKind::kSerial: o.base = drivers::SerialDriver::open(d.serial); break;
   }
   return o;

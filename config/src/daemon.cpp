@@ -565,6 +565,16 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
     r["driver"]["protocol"].fail(why);
   }
   checked(r, "controller", [&] { control::GaitController probe(p); });
+  // CSP drives start with the controller's module PD gains (their position loop, 2010h / 2011h).
+  // (pd_placement: host sends k_p = k_d = 0: the drives start with them.)
+  if (c.driver.kind == DriverKind::kSocketCan && c.driver.can.protocol == drivers::CanProtocol::kCanOpen &&
+      p.pd.placement == control::PdPlacement::kModule) {
+    for (int j = 0; j < c.driver.can.joints; ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      c.driver.can.canopen.csp_kp[ju] = p.pd.K_p.size() == 1 ? p.pd.K_p[0] : p.pd.K_p.at(ju);
+      c.driver.can.canopen.csp_kd[ju] = p.pd.K_D.size() == 1 ? p.pd.K_D[0] : p.pd.K_D.at(ju);
+    }
+  }
   if (r.has("observer")) {
     const Reader o = r["observer"];
     o.allow_only({"enabled"});

@@ -95,6 +95,8 @@ CanOpenDriver::CanOpenDriver(int fd, const SocketCanConfig& cfg) : fd_(fd), join
     const int one = 1;
     (void)::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one);
     sync_wire_ns_ = std::llround(can_classic_frame_bits(0) / cfg.bitrate * 1e9);
+    for (int n = 0; n <= 8; ++n)
+      frame_wire_ns_[static_cast<std::size_t>(n)] = std::llround(can_classic_frame_bits(n) / cfg.bitrate * 1e9);
     joint_of_node_.fill(-1);
     for (int j = 0; j < joints_; ++j) {
       const auto ju = static_cast<std::size_t>(j);
@@ -323,8 +325,17 @@ void CanOpenDriver::bring_up() {
       rpdo(0, {mapping(cia402::kObjControlword, 0, 16), mapping(cia402::kObjTargetPosition, 0, 32),
                mapping(co::kObjTorqueOffset, 0, 16)});
       rpdo(1, {mapping(co::kObjVelocityOffset, 0, 32)});
-      sdo_download(j, co::kObjCspKp, 0, 0, 4, "CSP position loop gain");
-      sdo_download(j, co::kObjCspKd, 0, 0, 4, "CSP velocity loop gain");
+      auto bits = [](double v) {
+        const auto real = static_cast<float>(v);
+        std::uint32_t b = 0;
+        std::memcpy(&b, &real, 4);
+        return b;
+      };
+      sdo_download(j, co::kObjCspKp, 0, bits(o.csp_kp[ju]), 4, "CSP position loop gain");
+      sdo_download(j, co::kObjCspKd, 0, bits(o.csp_kd[ju]), 4, "CSP velocity loop gain");
+      sent_kp_[ju] = want_kp_[ju] = o.csp_kp[ju];
+      sent_kd_[ju] = want_kd_[ju] = o.csp_kd[ju];
+      kp_sent_[ju] = kd_sent_[ju] = true;
     } else {
       rpdo(0, {mapping(cia402::kObjControlword, 0, 16), mapping(cia402::kObjTargetTorque, 0, 16)});
       rpdo(1, {});
@@ -367,6 +378,9 @@ CanOpenDriver::Tx CanOpenDriver::send(const can_frame& f) noexcept {
     const ssize_t r = ::send(fd_, &f, CAN_MTU, MSG_DONTWAIT | MSG_NOSIGNAL);
     if (r == static_cast<ssize_t>(CAN_MTU)) {
       ++counters_.frames_tx;
+      // The bus carries the frames one after the other (the transmit queue is FIFO).
+      const std::int64_t t = detail::monotonic_ns();
+      wire_busy_ns_ = (wire_busy_ns_ > t ? wire_busy_ns_ : t) + frame_wire_ns_[f.len > 8 ? 8 : f.len];
       return Tx::kOk;
     }
     if (r < 0 && errno == EINTR) continue;
@@ -414,6 +428,7 @@ void CanOpenDriver::drain(std::int64_t rt_minus_mono_ns, bool before_sync) noexc
     }
     if (stamp == 0) stamp = detail::monotonic_ns();
     silence_.on_rx(stamp, counters_);
+    if (stamp > wire_busy_ns_) wire_busy_ns_ = stamp;  // the bus was busy up to this frame's end
     ++counters_.frames_rx;
     if (n != static_cast<ssize_t>(CAN_MTU) || (m.msg_flags & MSG_TRUNC)) {
       ++counters_.malformed;
@@ -547,12 +562,18 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   bus_error_cycle_ = false;
   const std::int64_t rt_off = detail::clock_ns(CLOCK_REALTIME) - detail::monotonic_ns();
   drain(rt_off, true);
-  // The RPDOs written last cycle act from this SYNC on.
+  // The RPDOs written last cycle act from this SYNC on; the sample this SYNC takes is the end of
+  // the interval over which the previous SYNC's command acted (reported: applied then).
+  prev_acting_seq_ = acting_seq_;
+  prev_sync_ns_ = sync_lower_ns_;
   if (written_) acting_seq_ = written_seq_;
   written_ = false;
   can_frame sync{};
   co::encode_sync(0, sync);
-  sync_lower_ns_ = detail::monotonic_ns() + sync_wire_ns_;
+  // The drives sample when the SYNC has crossed the bus: after what is still queued or on the
+  // wire before it (last cycle's RPDOs of a late write, answers still coming), then its own bits.
+  const std::int64_t t_sync = detail::monotonic_ns();
+  sync_lower_ns_ = (wire_busy_ns_ > t_sync ? wire_busy_ns_ : t_sync) + sync_wire_ns_;
   const Tx tx = send(sync);
   auto complete = [&]() noexcept {
     for (int j = 0; j < joints_; ++j)
@@ -603,8 +624,10 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
     } else {
       ++fresh;
       out.sample_ns[ju] = sync_lower_ns_;
-      out.applied_seq[ju] = acting_seq_;
-      out.applied_ns[ju] = sync_lower_ns_;
+      // The command applied last before this sample: the one the previous SYNC put in force (this
+      // SYNC's takes effect as the sample is taken, and acts over the next interval).
+      out.applied_seq[ju] = prev_acting_seq_;
+      out.applied_ns[ju] = prev_sync_ns_;
     }
     if (faulted_[ju]) st |= kStatusStale | kStatusTorqueOff;
     else if (ds != cia402::State::kOperationEnabled) st |= kStatusTorqueOff;

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -378,6 +379,8 @@ CanOpenModuleEmulator::CanOpenModuleEmulator(int fd, const EmulatorConfig& cfg,
   if (fd < 0 || !detail::set_nonblocking(fd))
     throw std::invalid_argument("CANopen module emulator: fd = " + std::to_string(fd) +
                                 ", expected an open socket");
+  const int one = 1;
+  (void)::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one);  // the frames' arrival times
   if (co.encoder_increments == 0 || co.deflection_increments == 0 || co.rated_torque_mnm == 0)
     throw std::invalid_argument("CANopen module emulator: encoder_increments, deflection_increments and "
                                 "rated_torque_mnm must be > 0");
@@ -490,13 +493,31 @@ void CanOpenModuleEmulator::run(const std::atomic<bool>& stop) {
     }
     bank_.on_turn(detail::monotonic_ns());
     bool got = false;
+    const std::int64_t rt_off = detail::clock_ns(CLOCK_REALTIME) - detail::monotonic_ns();
     for (;;) {
       canfd_frame f{};
-      const ssize_t n = ::recv(fd_, &f, sizeof f, MSG_DONTWAIT);
+      iovec iov{&f, sizeof f};
+      alignas(cmsghdr) std::array<char, 128> cbuf{};
+      msghdr m{};
+      m.msg_iov = &iov;
+      m.msg_iovlen = 1;
+      m.msg_control = cbuf.data();
+      m.msg_controllen = cbuf.size();
+      const ssize_t n = ::recvmsg(fd_, &m, MSG_DONTWAIT);
       if (n < 0 && errno == EINTR) continue;
       if (n <= 0) break;
       got = true;
-      const std::int64_t t = detail::monotonic_ns();
+      // A drive acts on a frame when it arrives, not when this thread gets to it: the kernel's
+      // receive stamp (AF_UNIX: when the host sent it; CAN: when it came off the bus), so a
+      // thread held by a loaded machine still samples the plant at the SYNC's time.
+      std::int64_t t = detail::monotonic_ns();
+      for (cmsghdr* c = CMSG_FIRSTHDR(&m); c != nullptr; c = CMSG_NXTHDR(&m, c)) {
+        if (c->cmsg_level != SOL_SOCKET || c->cmsg_type != SCM_TIMESTAMPNS) continue;
+        timespec rx{};
+        std::memcpy(&rx, CMSG_DATA(c), sizeof rx);
+        const std::int64_t k = static_cast<std::int64_t>(rx.tv_sec) * 1'000'000'000LL + rx.tv_nsec - rt_off;
+        if ((rx.tv_sec != 0 || rx.tv_nsec != 0) && k < t && k > t - 1'000'000'000LL) t = k;
+      }
       if (n != static_cast<ssize_t>(CAN_MTU)) {
         bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
         continue;

@@ -219,9 +219,11 @@ TEST(CanOpenMaster, BringsUpEveryNodeAndRunsCstOverSyncAndPdos) {
       const auto ju = static_cast<std::size_t>(j);
       ASSERT_EQ(log[i].status[ju] & ~pd::kStatusTorqueOff, 0) << "cycle " << i << " joint " << j << " missing "
                                                                 << c.missing << " late " << c.late;
-      // The command written in cycle i − 1 acts from this SYNC on.
-      EXPECT_EQ(log[i].applied_seq[ju], sent[i - 1].seq);
-      EXPECT_EQ(log[i].applied_ns[ju], log[i].sample_ns[ju]);
+      // The command written in cycle i − 2 acted from the previous SYNC up to this sample (the
+      // one written in cycle i − 1 takes effect at this SYNC).
+      EXPECT_EQ(log[i].applied_seq[ju], sent[i - 2].seq);
+      EXPECT_EQ(log[i].applied_ns[ju], log[i - 1].sample_ns[ju]);
+      EXPECT_GT(log[i].sample_ns[ju], log[i - 1].sample_ns[ju]);
     }
   }
   const pd::Feedback& m = bus.plant.last_measured();

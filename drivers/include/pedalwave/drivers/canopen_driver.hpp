@@ -15,7 +15,8 @@
 // TPDO 1 and TPDO 2 until the deadline (frames queued before the SYNC answer an older one: late);
 // write() sends RPDOs whose controlword is enable operation (0x0F), or disable operation (0x07,
 // the drive's output off) for Command::torque_off; the drives act on them at the next SYNC
-// (FeedbackTiming::kModule: the sample and the application at the SYNC). CSP: a changed k_p / k_d
+// (FeedbackTiming::kModule: a sample at its SYNC reports the command the previous SYNC put in
+// force, applied at that SYNC). CSP: a changed k_p / k_d
 // goes to 2010h / 2011h by one expedited SDO download at a time between the PDOs.
 // Heartbeat consumer: a node without heartbeat for heartbeat_timeout_s is lost; EMCY consumer: an
 // emergency with a non-zero code (or a statusword in Fault) is a drive fault. Either is latched,
@@ -101,6 +102,8 @@ class CanOpenDriver final : public Driver {
   std::uint64_t cycle_ = 0;
   std::int64_t deadline_ns_ = 0;
   std::int64_t sync_wire_ns_ = 0, sync_lower_ns_ = 0;
+  std::array<std::int64_t, 9> frame_wire_ns_{};  // a classic frame of n bytes on the wire [ns]
+  std::int64_t wire_busy_ns_ = 0;  // the bus is busy with frames sent / seen until then [ns]
   bool bus_error_cycle_ = false, peer_closed_ = false, bus_off_ = false;
   std::array<std::int8_t, 128> joint_of_node_{};
   std::array<std::uint8_t, kMaxJoints> node_{};
@@ -122,7 +125,8 @@ class CanOpenDriver final : public Driver {
   std::array<char, 256> fault_text_{};
   int fault_joint_ = -1;
   // Commands: the seq written last (acts from the next SYNC) and the one the drives act on now.
-  std::uint64_t written_seq_ = kNoCommandSeq, acting_seq_ = kNoCommandSeq;
+  std::uint64_t written_seq_ = kNoCommandSeq, acting_seq_ = kNoCommandSeq, prev_acting_seq_ = kNoCommandSeq;
+  std::int64_t prev_sync_ns_ = 0;  // the previous SYNC's lower bound [ns]
   bool written_ = false;
   // CSP gains by SDO: sent values, the transfer under way.
   canopen::SdoClient sdo_;

@@ -128,7 +128,8 @@ BusBudget check_can_bus_budget(const CanBusSpec& s) {
         std::to_string(b.frames - 1) + " PDOs" + (s.heartbeat_s > 0 ? " + heartbeats" : "") + "), load " +
         fmt("%.0f", b.load * 100) + " %, but max_load allows " + fmt("%.0f", b.time_available_s * 1e6) +
         " µs; options: a rate of at most " + fmt("%.0f", s.max_load / b.time_needed_s) + " Hz, " +
-        (per_bus > 0 ? "at most " + std::to_string(per_bus) + " nodes per bus" : std::string("a second bus")) +
+        (per_bus > 0 ? "at most " + std::to_string(per_bus) + (per_bus == 1 ? " node" : " nodes") + " per bus"
+                     : std::string("a second bus")) +
         ", or a higher bit rate");
   }
 

@@ -402,9 +402,18 @@ CanOpenModuleEmulator::CanOpenModuleEmulator(int fd, const EmulatorConfig& cfg,
       value_[ju][kE603F] = co.emcy_code;
     }
   }
+  publish();
 }
 
 CanOpenModuleEmulator::~CanOpenModuleEmulator() = default;
+
+void CanOpenModuleEmulator::publish() noexcept {
+  for (int j = 0; j < bank_.joints(); ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    pub_nmt_[ju].store(static_cast<std::uint8_t>(node_[ju].nmt), std::memory_order_release);
+    pub_drive_[ju].store(static_cast<std::uint8_t>(node_[ju].drive), std::memory_order_release);
+  }
+}
 
 bool CanOpenModuleEmulator::node_silent(int j) const { return bank_.silent(j); }
 
@@ -532,6 +541,7 @@ void CanOpenModuleEmulator::run(const std::atomic<bool>& stop) {
     }
     now = detail::monotonic_ns();
     heartbeats(now);
+    publish();
     flush(now);
     bank_.keep_up(now);
     bank_.end_turn(detail::monotonic_ns());
@@ -799,6 +809,7 @@ void CanOpenModuleEmulator::on_sync(std::int64_t now) noexcept {
       send(f, now, true);
     }
   }
+  publish();
   flush(detail::monotonic_ns());
 }
 

@@ -62,9 +62,13 @@ struct Bus {
     emu = std::make_unique<co::CanOpenModuleEmulator>(fds[1], ec, cc, plant);
     th = std::thread([this] { emu->run(stop); });
   }
-  ~Bus() {
+  // Stops the emulated drives (the plant and the bank may be read afterwards). Idempotent.
+  void halt() {
     stop = true;
-    th.join();
+    if (th.joinable()) th.join();
+  }
+  ~Bus() {
+    halt();
     ::close(fds[1]);
     if (fds[0] >= 0) ::close(fds[0]);
   }
@@ -199,6 +203,7 @@ TEST(CanOpenMaster, BringsUpEveryNodeAndRunsCstOverSyncAndPdos) {
   std::vector<pd::Command> sent;
   const auto log = run(drv, 250, torque_sine, &sent);
   for (int j = 0; j < J; ++j) EXPECT_EQ(bus.emu->drive(j), pd::cia402::State::kOperationEnabled);
+  bus.halt();
   const pd::DriverCounters c = drv.counters();
   EXPECT_EQ(c.missing, 0u);
   EXPECT_EQ(c.late, 0u);
@@ -239,6 +244,7 @@ TEST(CanOpenMaster, RunsCspWithTheDrivesPositionLoop) {
   pd::CanOpenDriver drv(bus.take_master_fd(), master_config(J, pd::CanOpenMode::kCsp));
   std::vector<pd::Command> sent;
   const auto log = run(drv, 300, [](pd::Command& c, int i) { pedalwave::test::make_command(c, c.joints, i * kPeriod); }, &sent);
+  bus.halt();
   const pd::Command& last = bus.plant.last_command();
   for (int j = 0; j < J; ++j) {
     EXPECT_FLOAT_EQ(static_cast<float>(last.kp[j]), 2.0f) << "2010h by SDO between the PDOs";
@@ -287,6 +293,7 @@ TEST(CanOpenMaster, AnEmcyIsANamedDriveFaultOnItsJoint) {
                "CANopen node 3 (joint 2): EMCY 2310h, error register 03h: continuous over-current (device output side)");
   EXPECT_EQ(drv.emcy_code(2), 0x2310);
   EXPECT_EQ(bus.emu->drive(2), pd::cia402::State::kFault);
+  bus.halt();
   EXPECT_TRUE(bus.emu->bank().torque_off(2)) << "the faulted drive's output is off";
   EXPECT_FALSE(bus.emu->bank().torque_off(0));
   EXPECT_EQ(log.back().status[2] & (pd::kStatusStale | pd::kStatusTorqueOff), pd::kStatusStale | pd::kStatusTorqueOff);
@@ -344,15 +351,15 @@ TEST(CanOpenMaster, SafeStopDisablesEveryDrivesOutput) {
   Bus bus(J);
   pd::CanOpenDriver drv(bus.take_master_fd(), master_config(J, pd::CanOpenMode::kCst));
   run(drv, 30, torque_sine);
-  for (int j = 0; j < J; ++j) ASSERT_FALSE(bus.emu->bank().torque_off(j));
+  ASSERT_EQ(bus.emu->stats().torque_off_cmds.load(), 0u) << "every drive enabled while commanded";
   drv.safe_stop();
   EXPECT_TRUE(pedalwave::test::wait_for(
-      [&] {
-        for (int j = 0; j < J; ++j)
-          if (!bus.emu->bank().torque_off(j)) return false;
-        return true;
-      },
-      2'000 * kMs));
+      [&] { return bus.emu->stats().torque_off_cmds.load() >= static_cast<std::uint64_t>(J); }, 2'000 * kMs));
+  bus.halt();
+  for (int j = 0; j < J; ++j) {
+    EXPECT_TRUE(bus.emu->bank().torque_off(j)) << j;
+    EXPECT_EQ(bus.emu->drive(j), pd::cia402::State::kSwitchedOn) << "disable operation";
+  }
 }
 
 TEST(CanOpenMaster, SteadyStateReadWriteAllocateNothing) {

@@ -133,9 +133,13 @@ class CanOpenModuleEmulator {
   void run(const std::atomic<bool>& stop);
   EmulatorStats& stats() { return bank_.stats(); }
   ModuleBank& bank() { return bank_; }
-  // For the tests (read while run() is stopped, or racy-but-atomic counters below).
-  NmtState nmt(int j) const { return node_[static_cast<std::size_t>(j)].nmt; }
-  cia402::State drive(int j) const { return node_[static_cast<std::size_t>(j)].drive; }
+  // Node j's NMT and drive state as of the emulator's last turn (readable from any thread).
+  NmtState nmt(int j) const {
+    return static_cast<NmtState>(pub_nmt_[static_cast<std::size_t>(j)].load(std::memory_order_acquire));
+  }
+  cia402::State drive(int j) const {
+    return static_cast<cia402::State>(pub_drive_[static_cast<std::size_t>(j)].load(std::memory_order_acquire));
+  }
   std::atomic<std::uint64_t> emcy_sent{0};
   std::atomic<std::uint64_t> heartbeats_sent{0};
   std::atomic<std::uint64_t> sdo_served{0};
@@ -189,6 +193,8 @@ class CanOpenModuleEmulator {
   std::size_t head_ = 0, tail_ = 0;
   bool blocked_ = false;
   bool booted_ = false;
+  std::array<std::atomic<std::uint8_t>, kMaxJoints> pub_nmt_{}, pub_drive_{};
+  void publish() noexcept;  // node_[j].nmt / drive → pub_*
   std::vector<std::unique_ptr<NodeDictionary>> dict_;
   std::vector<std::unique_ptr<SdoServer>> sdo_;
 

@@ -101,10 +101,15 @@ void expect_clean_walk(const CanOpenWalk& w, double duration, double sim_speed) 
 }
 
 const char* kSimDriver = "{type: sim, scene: ../scenes/flat_high_friction.yaml, clock: lockstep}";
+// The walks: a consumer time a loaded machine's scheduling does not reach (the emulated drives'
+// thread is held now and then); the lost-node walk: shorter than the runtime's stale_timeout
+// (0.2 s), so the heartbeat consumer names the node before the runtime stops.
 const char* kCstDriver = "{type: socketcan, ifname: vcan0, protocol: canopen, drive_mode: cst, heartbeat: 0.02, "
-                         "heartbeat_timeout: 0.06}";
+                         "heartbeat_timeout: 0.5}";
 const char* kCspDriver = "{type: socketcan, ifname: vcan0, protocol: canopen, drive_mode: csp, heartbeat: 0.02, "
-                         "heartbeat_timeout: 0.06}";
+                         "heartbeat_timeout: 0.5}";
+const char* kCstDriverFastHeartbeat = "{type: socketcan, ifname: vcan0, protocol: canopen, drive_mode: cst, "
+                                      "heartbeat: 0.02, heartbeat_timeout: 0.06}";
 const char* kHostPd = "{k_c: 0, pd_placement: host, K_p: 20, K_D: 0.5}";
 const char* kModulePd = "{k_c: 0, pd_placement: module}";
 
@@ -135,7 +140,7 @@ TEST(CanOpenWalk, CspWithTheDrivesPositionLoopAndTheObserverOn) {
 
 TEST(CanOpenWalk, ANodeLostMidWalkStopsTheRuntimeOnItsJointNamedByTheHeartbeatConsumer) {
   const double duration = 5;
-  const config::DaemonConfig cfg = canopen_config(kCstDriver, kHostPd, duration, false);
+  const config::DaemonConfig cfg = canopen_config(kCstDriverFastHeartbeat, kHostPd, duration, false);
   drivers::FaultConfig f;
   f.module[2].silent = true;
   f.onset_sync = 500;  // 2 s in

@@ -375,7 +375,7 @@ std::uint32_t CanOpenModuleEmulator::write_value(int j, int e, std::uint32_t v) 
 // ---- The emulator ----------------------------------------------------------------------------------
 CanOpenModuleEmulator::CanOpenModuleEmulator(int fd, const EmulatorConfig& cfg,
                                              const CanOpenEmulatorConfig& co, ModulePlant& plant)
-    : fd_(fd), co_(co), bank_(cfg, plant), wire_(cfg.bus.wire) {
+    : fd_(fd), co_(co), bank_(cfg, plant), wire_(cfg.bus.wire), host_wire_(cfg.bus.wire) {
   if (fd < 0 || !detail::set_nonblocking(fd))
     throw std::invalid_argument("CANopen module emulator: fd = " + std::to_string(fd) +
                                 ", expected an open socket");
@@ -533,7 +533,10 @@ void CanOpenModuleEmulator::run(const std::atomic<bool>& stop) {
       }
       can_frame c{};
       std::memcpy(&c, &f, CAN_MTU);
-      handle(c, wire_.occupy(t, wire_ns(c.len)));
+      // The host's frames leave its FIFO transmit queue one after the other; the drives' own
+      // frames (ids 080h + node and up) lose arbitration to them, so they do not delay a SYNC or
+      // an RPDO beyond the frame already on the wire (not modelled: ≤ one frame time).
+      handle(c, host_wire_.occupy(t, wire_ns(c.len)));
     }
     if (!got && pr > 0 && (p.revents & (POLLHUP | POLLERR))) {
       const timespec s = detail::to_timespec(kPollSliceNs);

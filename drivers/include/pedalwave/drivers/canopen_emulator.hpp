@@ -182,7 +182,8 @@ class CanOpenModuleEmulator {
   int fd_;
   CanOpenEmulatorConfig co_;
   ModuleBank bank_;
-  WireClock wire_;
+  WireClock wire_;       // the drives' frames, one after the other
+  WireClock host_wire_;  // the host's frames (its transmit queue), one after the other
   std::uint64_t syncs_ = 0;
   std::array<Node, kMaxJoints> node_{};
   std::array<std::array<std::uint32_t, 64>, kMaxJoints> value_{};  // per node, per entry

@@ -422,3 +422,74 @@ TEST(CanOpenBudget, CoversSyncRpdosTpdosAndHeartbeatsAndRefusesWhatDoesNotFit) {
   c.max_load = 0.8;
   EXPECT_THROW(pd::CanOpenDriver(-1, c), std::invalid_argument);
 }
+
+// ---- The emulated drive's SDO server: CiA 301's PDO mapping procedure -----------------------------
+namespace {
+// One SDO transfer with node 1 over the socket pair: the abort code (0 = done).
+std::uint32_t sdo(int fd, bool download, std::uint16_t index, std::uint8_t sub, std::uint32_t value, int bytes,
+                  std::uint32_t* read = nullptr) {
+  co::SdoClient c;
+  can_frame f{};
+  std::array<std::uint8_t, 4> b{};
+  for (int i = 0; i < 4; ++i) b[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(value >> (8 * i));
+  if (download) c.start_download(1, index, sub, std::span<const std::uint8_t>(b.data(), static_cast<std::size_t>(bytes)), f);
+  else c.start_upload(1, index, sub, f);
+  EXPECT_EQ(::send(fd, &f, CAN_MTU, 0), static_cast<ssize_t>(CAN_MTU));
+  const std::int64_t give_up = now_ns() + 2'000 * kMs;
+  while (now_ns() < give_up) {
+    can_frame r{};
+    const ssize_t n = ::recv(fd, &r, sizeof r, MSG_DONTWAIT);
+    if (n != static_cast<ssize_t>(CAN_MTU)) {
+      sleep_until(now_ns() + kMs / 2);
+      continue;
+    }
+    can_frame next{};
+    switch (c.on_frame(r, next)) {
+      case co::SdoStep::kIgnored: continue;
+      case co::SdoStep::kSend: ::send(fd, &next, CAN_MTU, 0); continue;
+      case co::SdoStep::kDone:
+        if (read) {
+          *read = 0;
+          for (std::size_t i = 0; i < c.data().size() && i < 4; ++i) *read |= std::uint32_t{c.data()[i]} << (8 * i);
+        }
+        return 0;
+      case co::SdoStep::kAbort: return c.abort_code();
+    }
+  }
+  ADD_FAILURE() << "no SDO answer";
+  return ~0u;
+}
+}  // namespace
+
+TEST(CanOpenEmulatedDrive, PdoMappingFollowsCia301sProcedure) {
+  Bus bus(1);
+  const int fd = bus.fds[0];
+  // A mapping changes only while its PDO's COB-ID is invalid, entries only while the count is 0.
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 1, 0x60640020, 4), 0x08000022u) << "TPDO 1 valid: device state";
+  EXPECT_EQ(sdo(fd, true, 0x1800, 1, 0x80000181, 4), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 1, 0x60640020, 4), 0x08000022u) << "count still 1";
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 0, 0, 1), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 1, 0x10000020, 4), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 0, 1, 1), co::kAbortNotMappable) << "1000h is not PDO-mappable";
+  for (std::uint8_t k = 1; k <= 3; ++k) EXPECT_EQ(sdo(fd, true, 0x1A00, k, 0x60640020, 4), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 0, 3, 1), co::kAbortPdoLength) << "96 bits";
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 0, 2, 1), 0u) << "64 bits";
+  // An RPDO maps writable objects only; the COB-ID changes only while invalid.
+  EXPECT_EQ(sdo(fd, true, 0x1400, 1, 0x80000201, 4), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1600, 0, 0, 1), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1600, 1, 0x60410010, 4), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1600, 0, 1, 1), co::kAbortNotMappable) << "the statusword is read-only";
+  EXPECT_EQ(sdo(fd, true, 0x1800, 1, 0x00000190, 4), 0u) << "invalid → valid with a new id";
+  EXPECT_EQ(sdo(fd, true, 0x1800, 1, 0x00000191, 4), co::kAbortValueRange) << "valid → another id";
+  // Types, access, existence.
+  EXPECT_EQ(sdo(fd, true, 0x6041, 0, 0, 2), co::kAbortReadOnly);
+  EXPECT_EQ(sdo(fd, true, 0x6040, 0, 6, 4), co::kAbortLengthHigh);
+  EXPECT_EQ(sdo(fd, true, 0x6060, 0, 9, 1), co::kAbortValueRange) << "CSV is not offered";
+  EXPECT_EQ(sdo(fd, false, 0x6502, 0, 0, 0), co::kAbortNoObject);
+  EXPECT_EQ(sdo(fd, false, 0x1018, 7, 0, 0), co::kAbortNoSubindex);
+  std::uint32_t v = 0;
+  EXPECT_EQ(sdo(fd, false, 0x1018, 4, 0, 0, &v), 0u);
+  EXPECT_EQ(v, 1u) << "serial number = node id";
+  EXPECT_EQ(sdo(fd, false, 0x1000, 0, 0, 0, &v), 0u);
+  EXPECT_EQ(v, co::kDeviceType);
+}

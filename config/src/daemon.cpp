@@ -11,6 +11,7 @@
 
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/drivers/bus_budget.hpp"
+#include "pedalwave/drivers/canopen_driver.hpp"
 #include "pedalwave/drivers/serial_driver.hpp"
 
 namespace pedalwave::config {
@@ -99,6 +100,11 @@ constexpr DriverKey kDriverKeys[] = {
     {"bitrate", "the socketcan driver's", false, true, false},
     {"data_bitrate", "the socketcan driver's", false, true, false},
     {"max_load", "the socketcan and serial drivers'", false, true, true},
+    {"protocol", "the socketcan driver's", false, true, false},
+    {"nodes", "the socketcan driver's", false, true, false},              // protocol: canopen only
+    {"drive_mode", "the socketcan driver's", false, true, false},         // protocol: canopen only
+    {"heartbeat", "the socketcan driver's", false, true, false},          // protocol: canopen only
+    {"heartbeat_timeout", "the socketcan driver's", false, true, false},  // protocol: canopen only
     {"device", "the serial driver's", false, false, true},
     {"baud", "the serial driver's", false, false, true},
     {"return_delay", "the serial driver's", false, false, true},
@@ -165,10 +171,44 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
       r["data_bitrate"].fail("no data_bitrate without fd: true (the data phase is CAN FD's)");
     d.can.max_load = r.bounded("max_load", 0.8, 0, 1, "-", true);
     d.can.period_s = period;
-    checked(r, "driver", [&] {
-      drivers::check_can_bus_budget({d.can.joints, d.can.period_s, d.can.bitrate, d.can.fd,
-                                     d.can.data_bitrate, d.can.max_load});
-    });
+    // What the bus speaks: the pedalwave modules' protocol, or CANopen drives (CiA 301/402,
+    // drivers/PROTOCOL.md §7).
+    const bool canopen = r.choice("protocol", "pedalwave", {"pedalwave", "canopen"}) == "canopen";
+    d.can.protocol = canopen ? drivers::CanProtocol::kCanOpen : drivers::CanProtocol::kPedalwave;
+    for (const char* key : {"nodes", "drive_mode", "heartbeat", "heartbeat_timeout"})
+      if (!canopen && r.has(key))
+        r[key].fail(std::string("no ") + key + " without protocol: canopen (" + key + " is the CANopen master's)");
+    if (canopen) {
+      if (d.can.fd) r["fd"].fail("fd: false with protocol: canopen (the CANopen master sends classic frames)");
+      drivers::CanOpenOptions& o = d.can.canopen;
+      if (r.has("nodes")) {
+        const Reader n = r["nodes"];
+        const std::string what = "a list of " + std::to_string(joints) +
+                                 " distinct CANopen node ids in 1 … 127, one per joint (robot.N − 1)";
+        if (!n.is_sequence() || static_cast<int>(n.size()) != joints) n.fail(what);
+        std::array<bool, 128> used{};
+        for (std::size_t i = 0; i < n.size(); ++i) {
+          const Reader e = n.at(i);
+          if (!e.is_scalar()) e.fail("a node id, an integer in 1 … 127");
+          const double v = e.as_number();
+          if (!(v >= 1 && v <= 127) || v != std::floor(v)) e.fail("a node id, an integer in 1 … 127");
+          if (used[static_cast<std::size_t>(v)]) e.fail("a node id not given to another joint");
+          used[static_cast<std::size_t>(v)] = true;
+          o.node[i] = static_cast<std::uint8_t>(v);
+        }
+      }
+      o.mode = r.choice("drive_mode", "cst", {"cst", "csp"}) == "csp" ? drivers::CanOpenMode::kCsp
+                                                                      : drivers::CanOpenMode::kCst;
+      // 1017h holds whole milliseconds (1 … 65535).
+      o.heartbeat_s = r.bounded("heartbeat", 0.05, 0.001, 65.535, "s");
+      o.heartbeat_timeout_s = r.bounded("heartbeat_timeout", 3 * o.heartbeat_s, 0, 100, "s", true);
+      if (!(o.heartbeat_timeout_s > o.heartbeat_s)) {
+        std::ostringstream os;
+        os << "a number > driver.heartbeat = " << o.heartbeat_s << " (the consumer waits longer than the producer's period)";
+        r[r.has("heartbeat_timeout") ? "heartbeat_timeout" : "heartbeat"].fail(os.str());
+      }
+    }
+    checked(r, "driver", [&] { drivers::check_can_bus_budget(drivers::can_bus_spec(d.can)); });
   } else {
     d.serial.device = r.string("device", "/dev/ttyUSB0");
     // Absolute: a relative one would be opened from wherever the daemon was started.
@@ -374,8 +414,7 @@ void derive_timeouts(const Reader& r, DaemonConfig& c) {
   double window = 0.0;
   const DriverSelection& d = c.driver;
   if (d.kind == DriverKind::kSocketCan)
-    window = drivers::can_reply_window_s({d.can.joints, period, d.can.bitrate, d.can.fd,
-                                          d.can.data_bitrate, d.can.max_load});
+    window = drivers::can_reply_window_s(drivers::can_bus_spec(d.can));
   else if (d.kind == DriverKind::kSerial) {
     drivers::SerialBusSpec spec{d.serial.joints, period, d.serial.baud, d.serial.return_delay_s,
                                 d.serial.turnaround_s, d.serial.max_load};
@@ -532,7 +571,29 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
     if (r.has("controller") && r["controller"].has("pd_placement")) r["controller"]["pd_placement"].fail(why);
     r["driver"]["devices"].fail(why);
   }
+  // CANopen drives in cyclic synchronous torque apply the target torque only: the host evaluates
+  // the PD (in CSP the drive's position loop is the module PD).
+  if (c.driver.kind == DriverKind::kSocketCan && c.driver.can.protocol == drivers::CanProtocol::kCanOpen &&
+      c.driver.can.canopen.mode == drivers::CanOpenMode::kCst && p.pd.placement != control::PdPlacement::kHost) {
+    const std::string why =
+        "pd_placement: host with driver.drive_mode: cst (a CiA 402 drive in cyclic synchronous torque applies "
+        "the target torque only: the host evaluates the PD; or drive_mode: csp, whose position loop is the "
+        "module PD)";
+    if (r.has("controller") && r["controller"].has("pd_placement")) r["controller"]["pd_placement"].fail(why);
+    if (r["driver"].has("drive_mode")) r["driver"]["drive_mode"].fail(why);
+    r["driver"]["protocol"].fail(why);
+  }
   checked(r, "controller", [&] { control::GaitController probe(p); });
+  // CSP drives start with the controller's module PD gains (their position loop, 2010h / 2011h).
+  // (pd_placement: host sends k_p = k_d = 0: the drives start with them.)
+  if (c.driver.kind == DriverKind::kSocketCan && c.driver.can.protocol == drivers::CanProtocol::kCanOpen &&
+      p.pd.placement == control::PdPlacement::kModule) {
+    for (int j = 0; j < c.driver.can.joints; ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      c.driver.can.canopen.csp_kp[ju] = p.pd.K_p.size() == 1 ? p.pd.K_p[0] : p.pd.K_p.at(ju);
+      c.driver.can.canopen.csp_kd[ju] = p.pd.K_D.size() == 1 ? p.pd.K_D[0] : p.pd.K_D.at(ju);
+    }
+  }
   if (r.has("observer")) {
     const Reader o = r["observer"];
     o.allow_only({"enabled"});

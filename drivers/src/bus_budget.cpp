@@ -82,6 +82,19 @@ BusBudget can_bus_budget(const CanBusSpec& s) noexcept {
   if (s.joints <= 0 || s.joints > kMaxJoints || !(s.period_s > 0) || !(s.bitrate > 0) ||
       (s.fd && !(s.data_bitrate > 0)) || !(s.max_load > 0))
     return BusBudget{};
+  if (s.canopen) {
+    if (s.fd) return BusBudget{};  // CANopen here: classic frames only
+    const int j = s.joints;
+    int frames = 1 + j + 2 * j;
+    double bits = can_classic_frame_bits(0) + j * can_classic_frame_bits(s.canopen_csp ? 8 : 4) +
+                  2.0 * j * can_classic_frame_bits(8);
+    if (s.canopen_csp) {
+      frames += j;
+      bits += j * can_classic_frame_bits(4);
+    }
+    if (s.heartbeat_s > 0) bits += j * can_classic_frame_bits(1) * s.period_s / s.heartbeat_s;
+    return finish(frames, bits / s.bitrate, s.period_s, s.max_load, s.bitrate);
+  }
   const CanCycle c = can_cycle(s.joints, s.fd, s.bitrate, s.data_bitrate);
   return finish(c.frames, c.time_s, s.period_s, s.max_load, s.bitrate);
 }
@@ -96,8 +109,29 @@ BusBudget check_can_bus_budget(const CanBusSpec& s) {
         "CAN bus: period_s = " + fmt("%g", s.period_s) + ", bitrate = " + fmt("%g", s.bitrate) +
         ", data_bitrate = " + fmt("%g", s.data_bitrate) + ", max_load = " + fmt("%g", s.max_load) +
         "; expected period > 0, bit rates > 0, 0 < max_load ≤ 1");
+  if (s.canopen && s.fd)
+    throw std::invalid_argument("CAN bus: protocol canopen with fd: true; expected a classic CAN bus "
+                                "(this CANopen master sends classic frames only)");
   const BusBudget b = can_bus_budget(s);
   if (b.fits) return b;
+  if (s.canopen) {
+    int per_bus = 0;
+    for (int j = s.joints - 1; j >= 1 && per_bus == 0; --j) {
+      CanBusSpec t = s;
+      t.joints = j;
+      if (can_bus_budget(t).fits) per_bus = j;
+    }
+    throw std::invalid_argument(
+        "CAN bus budget exceeded: CANopen (" + std::string(s.canopen_csp ? "CSP" : "CST") + ") with " +
+        std::to_string(s.joints) + " nodes at " + fmt("%g", 1.0 / s.period_s) + " Hz on classic CAN at " +
+        rate_str(s.bitrate) + " needs " + fmt("%.0f", b.time_needed_s * 1e6) + " µs per cycle (SYNC + " +
+        std::to_string(b.frames - 1) + " PDOs" + (s.heartbeat_s > 0 ? " + heartbeats" : "") + "), load " +
+        fmt("%.0f", b.load * 100) + " %, but max_load allows " + fmt("%.0f", b.time_available_s * 1e6) +
+        " µs; options: a rate of at most " + fmt("%.0f", s.max_load / b.time_needed_s) + " Hz, " +
+        (per_bus > 0 ? "at most " + std::to_string(per_bus) + (per_bus == 1 ? " node" : " nodes") + " per bus"
+                     : std::string("a second bus")) +
+        ", or a higher bit rate");
+  }
 
   // Options: the highest rate that fits, CAN FD, joints per bus at this rate.
   const double max_rate = s.max_load / b.time_needed_s;
@@ -174,6 +208,8 @@ BusBudget serial_bus_budget(const SerialBusSpec& s) noexcept {
 
 double can_reply_window_s(const CanBusSpec& s) noexcept {
   if (s.joints <= 0 || !(s.bitrate > 0)) return 0.0;
+  if (s.canopen)
+    return (can_classic_frame_bits(0) + 2.0 * s.joints * can_classic_frame_bits(8)) / s.bitrate;
   const double sync = can_classic_frame_bits(2) / s.bitrate;
   if (!s.fd) return sync + 2.0 * s.joints * can_classic_frame_bits(8) / s.bitrate;
   const CanFdFrameBits fb = canfd_frame_bits(can::kFdFeedbackLen);

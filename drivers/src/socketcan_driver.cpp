@@ -109,6 +109,8 @@ SocketCanDriver::SocketCanDriver(int fd, const SocketCanConfig& cfg)
   try {
     if (fd < 0) throw std::invalid_argument("SocketCanDriver: fd = " + std::to_string(fd) +
                                             ", expected an open socket");
+    if (cfg.protocol != CanProtocol::kPedalwave)
+      throw std::invalid_argument("SocketCanDriver: protocol canopen is CanOpenDriver's (open_socketcan)");
     check_can_bus_budget({cfg.joints, cfg.period_s, cfg.bitrate, cfg.fd, cfg.data_bitrate,
                           cfg.max_load});
     if (!detail::set_nonblocking(fd))

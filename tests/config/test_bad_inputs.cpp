@@ -309,6 +309,17 @@ const std::vector<KeyRow> kDaemonKeys = {
     {"driver.data_bitrate", "rate_hz: 100\ndriver:\n  type: socketcan\n  fd: true\n  data_bitrate: @\n", "2e6", "x",
      "1e8", "a number in (0, 1.2e+07] [bit/s]"},
     {"driver.max_load", "rate_hz: 100\ndriver:\n  type: socketcan\n  max_load: @\n", "0.5", "x", "2", "a number in (0, 1]"},
+    {"driver.protocol", "rate_hz: 100\ndriver:\n  type: socketcan\n  protocol: @\n", "pedalwave", "[1]", "j1939",
+     "one of pedalwave, canopen"},
+    {"driver.nodes", "rate_hz: 100\nrobot: {N: 2}\ndriver:\n  type: socketcan\n  protocol: canopen\n  drive_mode: csp\n  nodes: @\n",
+     "[7]", "x", "[0]", "a node id, an integer in 1 … 127"},
+    {"driver.drive_mode", "rate_hz: 100\ndriver:\n  type: socketcan\n  protocol: canopen\n  drive_mode: @\n", "csp", "[1]",
+     "cyclic", "one of cst, csp"},
+    {"driver.heartbeat", "rate_hz: 100\ndriver:\n  type: socketcan\n  protocol: canopen\n  drive_mode: csp\n  heartbeat: @\n",
+     "0.02", "x", "100", "a number in [0.001, 65.535] [s]"},
+    {"driver.heartbeat_timeout",
+     "rate_hz: 100\ndriver:\n  type: socketcan\n  protocol: canopen\n  drive_mode: csp\n  heartbeat_timeout: @\n", "0.5", "x",
+     "0", "a number in (0, 100] [s]"},
     // 3500000 was in [9600, 4e6] and loaded; opening the port refused it (the driver's kSerialBauds).
     {"driver.baud", "rate_hz: 250\ndriver:\n  type: serial\n  baud: @\n", "1000000", "x", "3500000",
      "one of the standard rates 9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 921600, 1000000, "
@@ -489,6 +500,8 @@ const std::map<std::string, std::set<std::string>> kDriverKeyTypes = {
     {"device", {"serial"}},      {"baud", {"serial"}},       {"return_delay", {"serial"}},
     {"turnaround", {"serial"}},  {"devices", {"serial"}},    {"torque_constant", {"serial"}},
     {"sensor_id_offset", {"serial"}}, {"set_operating_mode", {"serial"}},
+    {"protocol", {"socketcan"}},  {"nodes", {"socketcan"}},    {"drive_mode", {"socketcan"}},
+    {"heartbeat", {"socketcan"}}, {"heartbeat_timeout", {"socketcan"}},
 };
 }  // namespace
 
@@ -785,6 +798,33 @@ TEST(BadInputs, EveryDaemonKeyWithARowIsInTheReadmeTable) {
 
 // Stock X-series servos (driver.devices: x_series) run no module PD: the PD goes to the host,
 // where its stability check applies; their keys are refused on a bus of pedalwave modules.
+// CANopen (driver.protocol: canopen): its keys need it, CST needs the host PD, classic frames only,
+// the bus budget counts the CANopen frame set, node ids are distinct.
+TEST(BadInputs, CanOpenKeysAndContradictions) {
+  std::string e = daemon_error("rate_hz: 100\ndriver: {type: socketcan, drive_mode: csp}\n");
+  EXPECT_NE(e.find("driver.drive_mode = \"csp\": expected no drive_mode without protocol: canopen"), std::string::npos) << e;
+  e = daemon_error("rate_hz: 100\ndriver: {type: socketcan, protocol: canopen}\n");
+  EXPECT_NE(e.find("driver.protocol = \"canopen\": expected pd_placement: host with driver.drive_mode: cst"),
+            std::string::npos) << e;
+  e = daemon_error("rate_hz: 100\ndriver: {type: socketcan, protocol: canopen, drive_mode: cst}\ncontroller: {pd_placement: module}\n");
+  EXPECT_NE(e.find("controller.pd_placement = \"module\": expected pd_placement: host"), std::string::npos) << e;
+  EXPECT_EQ(daemon_error("rate_hz: 100\ndriver: {type: socketcan, protocol: canopen}\ncontroller: {pd_placement: host, K_D: 0.5}\n"),
+            "(no error)");
+  e = daemon_error("rate_hz: 100\ndriver: {type: socketcan, protocol: canopen, drive_mode: csp, fd: true}\n");
+  EXPECT_NE(e.find("driver.fd = \"true\": expected fd: false with protocol: canopen"), std::string::npos) << e;
+  e = daemon_error("rate_hz: 100\nrobot: {N: 3}\ndriver: {type: socketcan, protocol: canopen, drive_mode: csp, nodes: [4, 4]}\n");
+  EXPECT_NE(e.find("driver.nodes[1] = \"4\": expected a node id not given to another joint"), std::string::npos) << e;
+  e = daemon_error("rate_hz: 100\nrobot: {N: 3}\ndriver: {type: socketcan, protocol: canopen, drive_mode: csp, nodes: [4]}\n");
+  EXPECT_NE(e.find("driver.nodes = [list]: expected a list of 2 distinct CANopen node ids"), std::string::npos) << e;
+  e = daemon_error("rate_hz: 100\ndriver: {type: socketcan, protocol: canopen, drive_mode: csp, heartbeat: 0.2, "
+                   "heartbeat_timeout: 0.1}\n");
+  EXPECT_NE(e.find("driver.heartbeat_timeout = \"0.1\": expected a number > driver.heartbeat = 0.2"), std::string::npos) << e;
+  // 5 CSP nodes at 1 kHz do not fit 1 Mbit/s (the own protocol on CAN FD does).
+  e = daemon_error("rate_hz: 1000\ndriver: {type: socketcan, protocol: canopen, drive_mode: csp}\n");
+  EXPECT_NE(e.find("driver: CAN bus budget exceeded: CANopen (CSP) with 5 nodes at 1000 Hz"), std::string::npos) << e;
+  EXPECT_EQ(daemon_error("rate_hz: 1000\ndriver: {type: socketcan, fd: true}\n"), "(no error)");
+}
+
 TEST(BadInputs, XSeriesServosNeedTheHostPdAndTheirKeysNeedThem) {
   std::string e = daemon_error("rate_hz: 250\ndriver: {type: serial, devices: x_series}\n");
   EXPECT_NE(e.find("driver.devices = \"x_series\": expected pd_placement: host with driver.devices: "

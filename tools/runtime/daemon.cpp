@@ -29,6 +29,7 @@
 #include "pedalwave/drivers/fault_injecting_driver.hpp"
 #include "pedalwave/drivers/serial_driver.hpp"
 #include "pedalwave/drivers/sim_driver.hpp"
+#include "pedalwave/drivers/canopen_driver.hpp"
 #include "pedalwave/drivers/socketcan_driver.hpp"
 #include "pedalwave/model/kinematics.hpp"
 #include "pedalwave/runtime/consumer.hpp"
@@ -116,7 +117,7 @@ OwnedDriver make_driver(const config::DaemonConfig& cfg, double duration) {
       o.base = std::move(sim);
       break;
     }
-    case config::DriverKind::kSocketCan: o.base = drivers::SocketCanDriver::open(d.can); break;
+    case config::DriverKind::kSocketCan: o.base = drivers::open_socketcan(d.can); break;
     case config::DriverKind::kSerial: o.base = drivers::SerialDriver::open(d.serial); break;
   }
   return o;
@@ -641,6 +642,10 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   res.event_log = consumer.events();
   res.events = res.event_log.events();
   out << (cfg.log_file.empty() ? res.exit_line : res.summary) << "\n";  // the summary ends with it
+  // A CANopen bus names what its master saw (a lost node, a drive's EMCY): the runtime's fault
+  // names the joint, this the drive and its error.
+  if (const auto* co = dynamic_cast<const drivers::CanOpenDriver*>(driver); co != nullptr && co->fault_text()[0] != '\0')
+    out << "driver: " << co->fault_text() << "\n";
   if (report.is_open()) {
     write_run_report(report, {.cfg = cfg, .run = res.run, .metrics = rt->metrics(),
                               .events = consumer.events(), .counters = driver->counters(),

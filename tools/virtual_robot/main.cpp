@@ -2,6 +2,7 @@
 // interface or on the far end of a pseudo-terminal, in real time, until Ctrl-C (or --duration).
 //
 //   pedalwave_virtual_robot --scene config/scenes/flat_high_friction.yaml --can vcan0 [--fd]
+//   pedalwave_virtual_robot --scene config/scenes/flat_high_friction.yaml --can vcan0 --protocol canopen
 //   pedalwave_virtual_robot --scene config/scenes/flat_high_friction.yaml --pty [--link PATH]
 //       [--latency ms] [--loss p] [--bit-error p] [--silent J]... [--counter-fault J:repeat]...
 //       [--fault-onset SYNC] [--command-timeout ms] [--seed n] [--h s] [--max-gap s]
@@ -70,6 +71,7 @@ int main(int argc, char** argv) {
   double h = 0.0;
   // The serial bus's devices: pedalwave modules, or stock X-series servos + deflection sensors.
   std::string devices = "pedalwave";
+  std::string protocol = "pedalwave";
   double torque_constant = 1.78;
   int sensor_id_offset = 100;
   app.add_option("--scene", scene_path, "scene file (YAML), e.g. config/scenes/flat_high_friction.yaml")
@@ -128,6 +130,10 @@ int main(int argc, char** argv) {
                  "current [N·m/A]")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--sensor-id-offset", sensor_id_offset, "x_series: sensor ID = servo ID + this")
       ->check(CLI::Range(1, 251))->capture_default_str();
+  app.add_option("--protocol", protocol, "with --can: what the modules speak — the pedalwave module "
+                 "protocol, or canopen: CiA 301/402 drives (node ids 1…N-1, drivers/PROTOCOL.md §7, "
+                 "drivers/canopen/pedalwave_module.eds)")
+      ->check(CLI::IsMember({"pedalwave", "canopen"}))->capture_default_str();
   app.add_option("--cpu", cpu, "pin the modules' thread to this CPU (−1 = no pinning)")
       ->check(CLI::Range(-1, 1023))->capture_default_str();
   if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_virtual_robot")) return *rc;
@@ -135,6 +141,9 @@ int main(int argc, char** argv) {
   if (fd && pty) return bad_input("--fd is a CAN option; the serial bus (--pty) has no FD frames");
   const bool x_series = devices == "x_series";
   if (x_series && !pty) return bad_input("--devices x_series is a serial bus: give --pty");
+  const bool canopen = protocol == "canopen";
+  if (canopen && pty) return bad_input("--protocol canopen is a CAN option: give --can IFNAME");
+  if (canopen && fd) return bad_input("--protocol canopen sends classic CAN frames: no --fd");
 
   pedalwave::model::Scene scene;
   try {
@@ -148,7 +157,7 @@ int main(int argc, char** argv) {
   const int joints = scene.robot.N - 1;
 
   vr::VirtualRobotOptions opt;
-  opt.bus = pty ? vr::Bus::kSerial : vr::Bus::kCan;
+  opt.bus = pty ? vr::Bus::kSerial : canopen ? vr::Bus::kCanOpen : vr::Bus::kCan;
   opt.emulator.fd = fd;
   opt.emulator.command_timeout_ns = static_cast<std::int64_t>(timeout_ms * 1e6);
   opt.emulator.bus = {!no_wire, bitrate, data_bitrate, baud, return_delay_us * 1e-6};
@@ -205,7 +214,7 @@ int main(int argc, char** argv) {
       p = vr::open_pty();
       bus_fd = p.master;
     } else {
-      bus_fd = vr::open_module_can_socket(can_if, fd);
+      bus_fd = canopen ? vr::open_canopen_module_socket(can_if) : vr::open_module_can_socket(can_if, fd);
     }
   } catch (const std::exception& e) {
     std::cerr << "pedalwave_virtual_robot: " << e.what() << '\n';

@@ -33,6 +33,8 @@ VirtualRobot::VirtualRobot(const model::Scene& scene, int fd, const VirtualRobot
     opt_.emulator.joints = plant_->joints();
     if (opt_.bus == Bus::kCan)
       can_ = std::make_unique<drivers::CanModuleEmulator>(fd_, opt_.emulator, *plant_);
+    else if (opt_.bus == Bus::kCanOpen)
+      canopen_ = std::make_unique<drivers::canopen::CanOpenModuleEmulator>(fd_, opt_.emulator, opt_.canopen, *plant_);
     else
       serial_ = std::make_unique<drivers::SerialModuleEmulator>(fd_, opt_.emulator, *plant_);
   } catch (...) {
@@ -51,6 +53,7 @@ void VirtualRobot::start() {
   stop_.store(false);
   thread_ = std::thread([this] {
     if (can_) can_->run(stop_);
+    else if (canopen_) canopen_->run(stop_);
     else serial_->run(stop_);
   });
   // Real modules are microcontrollers of their own: give the emulating thread the CPU it needs.
@@ -79,9 +82,13 @@ void VirtualRobot::stop() {
   if (thread_.joinable()) thread_.join();
 }
 
-drivers::ModuleBank& VirtualRobot::bank() { return can_ ? can_->bank() : serial_->bank(); }
+drivers::ModuleBank& VirtualRobot::bank() {
+  return can_ ? can_->bank() : canopen_ ? canopen_->bank() : serial_->bank();
+}
 
-const drivers::EmulatorStats& VirtualRobot::stats() { return can_ ? can_->stats() : serial_->stats(); }
+const drivers::EmulatorStats& VirtualRobot::stats() {
+  return can_ ? can_->stats() : canopen_ ? canopen_->stats() : serial_->stats();
+}
 
 std::string VirtualRobot::report() {
   const drivers::EmulatorStats& s = stats();
@@ -89,7 +96,8 @@ std::string VirtualRobot::report() {
   const drivers::FaultConfig& f = opt_.emulator.faults;
   std::ostringstream o;
   o << "virtual robot: " << joints() << " modules on "
-    << (opt_.bus == Bus::kCan ? (opt_.emulator.fd ? "CAN FD" : "classic CAN") : "serial (DYNAMIXEL 2.0)")
+    << (opt_.bus == Bus::kCan ? (opt_.emulator.fd ? "CAN FD" : "classic CAN")
+        : opt_.bus == Bus::kCanOpen ? "CANopen (classic CAN)" : "serial (DYNAMIXEL 2.0)")
     << "\n";
   o << "  SYNCs " << s.syncs.load() << ", replies sent " << s.replies_sent.load()
     << ", commands latched " << s.commands.load() << " (torque-off " << s.torque_off_cmds.load()
@@ -191,6 +199,25 @@ int open_module_can_socket(const std::string& ifname, bool fd_frames) {
   const int fd = drivers::open_can_socket(o);
   // A large receive queue: when the modules' thread is not scheduled for a while (a loaded or
   // emulated machine) the host's frames wait instead of being dropped (root may exceed rmem_max).
+  const int bytes = 4 << 20;
+  if (::setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &bytes, sizeof bytes) != 0)
+    (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &bytes, sizeof bytes);
+  return fd;
+}
+
+int open_canopen_module_socket(const std::string& ifname) {
+  static const std::array<can_filter, 4> filters{{
+      {0x000, CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG},   // NMT
+      {0x080, CAN_SFF_MASK | CAN_EFF_FLAG | CAN_RTR_FLAG},   // SYNC
+      {0x200, 0x600u | CAN_EFF_FLAG | CAN_RTR_FLAG},         // 200h–3FFh: RPDO 1, RPDO 2
+      {0x600, 0x780u | CAN_EFF_FLAG | CAN_RTR_FLAG},         // 600h–67Fh: SDO requests
+  }};
+  drivers::CanSocketOptions o;
+  o.ifname = ifname;
+  o.filters = filters;
+  o.error_frames = false;
+  o.timestamps = false;
+  const int fd = drivers::open_can_socket(o);
   const int bytes = 4 << 20;
   if (::setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &bytes, sizeof bytes) != 0)
     (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &bytes, sizeof bytes);

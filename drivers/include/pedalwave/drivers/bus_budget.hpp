@@ -40,6 +40,13 @@ struct CanBusSpec {
   bool fd = false;            // CAN FD frame set (command groups, FD feedback with BRS)
   double data_bitrate = 5e6;  // CAN FD data-phase bit rate [bit/s] (ignored for classic)
   double max_load = 0.8;      // fraction of the period the frame set may occupy [-]
+  // CANopen instead of the pedalwave frame set (PROTOCOL.md §7.4; classic frames only): per cycle
+  // SYNC (0 bytes) + J RPDO 1 (CST: 4 bytes, CSP: 8) [+ J RPDO 2 of 4 bytes in CSP] + J TPDO 1 and
+  // J TPDO 2 (8 bytes each), plus the heartbeats (J frames of 1 byte every heartbeat_s) spread
+  // over the cycles.
+  bool canopen = false;
+  bool canopen_csp = false;
+  double heartbeat_s = 0.0;   // 0: no heartbeat counted [s]
 };
 
 struct BusBudget {

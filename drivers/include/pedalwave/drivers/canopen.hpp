@@ -1,7 +1,7 @@
 // CANopen (CiA 301) codecs: NMT, SYNC, heartbeat / boot-up, EMCY, and an SDO client and server
 // (expedited and segmented transfers) as pure state machines on can_frame — no I/O, no
-// allocation, noexcept. Issue 14 item 3, first part: these are NOT wired into the SocketCAN
-// driver or the emulator yet (no `protocol: canopen` option exists).
+// allocation, noexcept. Used by the SocketCAN driver's CANopen master (canopen_driver.hpp,
+// driver.protocol: canopen) and the emulator's CANopen personality (canopen_emulator.hpp).
 //
 // Predefined connection set (11-bit COB-IDs, node 1 … 127):
 //   0x000 NMT command        host → nodes   2 bytes: [0] command specifier, [1] node (0 = all)

@@ -2,7 +2,7 @@
 // the statusword (0x6041) decoded to a state, the controlword (0x6040) the host sends to bring a
 // drive to Operation Enabled (shutdown 0x06 → switch on 0x07 → enable operation 0x0F; fault reset
 // on a rising bit 7), and the drive's own transitions (for an emulated drive and the tests).
-// Issue 14 item 3, first part: not wired into any driver yet.
+// Used by the CANopen master (canopen_driver.hpp) and the emulated drives (canopen_emulator.hpp).
 #pragma once
 
 #include <cstdint>

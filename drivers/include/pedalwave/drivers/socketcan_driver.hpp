@@ -46,6 +46,24 @@
 
 namespace pedalwave::drivers {
 
+// What the bus speaks (driver.protocol): the pedalwave module protocol (PROTOCOL.md §2) or
+// CANopen CiA 301/402 (PROTOCOL.md §7, canopen_driver.hpp).
+enum class CanProtocol : std::uint8_t { kPedalwave, kCanOpen };
+// CiA 402 mode the drives run in: cyclic synchronous torque (the host computes the whole torque:
+// pd_placement host) or cyclic synchronous position (the drive's position loop is the module PD).
+enum class CanOpenMode : std::uint8_t { kCst, kCsp };
+struct CanOpenOptions {
+  std::array<std::uint8_t, kMaxJoints> node{};  // node id of joint j, 1 … 127; 0 = j + 1
+  CanOpenMode mode = CanOpenMode::kCst;
+  double heartbeat_s = 0.05;          // producer heartbeat time set on every node (1017h) [s]
+  double heartbeat_timeout_s = 0.15;  // consumer: a node without heartbeat this long is lost [s]
+  double sdo_timeout_s = 0.2;         // one SDO answer at configuration [s]
+  double boot_timeout_s = 2.0;        // boot-ups after NMT reset communication [s]
+  // CSP: the drives' position loop gains written at bring-up (2010h, 2011h; the module PD's k_p,
+  // k_d: the controller's K_p, K_D); a Command with other gains changes them by SDO.
+  std::array<double, kMaxJoints> csp_kp{}, csp_kd{};  // [N·m/rad], [N·m·s/rad]
+};
+
 struct SocketCanConfig {
   std::string ifname = "can0";  // interface for open() (e.g. can0, vcan0)
   int joints = 5;               // modules (joints) on the bus, nodes 1…joints [-]
@@ -54,6 +72,8 @@ struct SocketCanConfig {
   double data_bitrate = 5e6;    // CAN FD data bit rate, for the budget check [bit/s]
   double period_s = 1e-3;       // cycle period, for the budget check [s]
   double max_load = 0.8;        // admissible bus load per cycle [-]
+  CanProtocol protocol = CanProtocol::kPedalwave;
+  CanOpenOptions canopen{};     // protocol kCanOpen only
 };
 
 // Options of a raw CAN socket.

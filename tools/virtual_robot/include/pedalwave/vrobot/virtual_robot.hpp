@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "pedalwave/drivers/fault_injector.hpp"
+#include "pedalwave/drivers/canopen_emulator.hpp"
 #include "pedalwave/drivers/module_emulator.hpp"
 #include "pedalwave/model/kinematics.hpp"
 #include "pedalwave/model/plant.hpp"
@@ -139,12 +140,14 @@ class SimulationPlant final : public drivers::ModulePlant {
 // "torque_gain 0.25 on joint 2 from 1.5 s for 2.0 s".
 std::string describe(const model::FaultSpec& f);
 
-enum class Bus : std::uint8_t { kCan, kSerial };
+// kCanOpen: the modules as CANopen CiA 402 drives (drivers/canopen_emulator.hpp) on a CAN transport.
+enum class Bus : std::uint8_t { kCan, kSerial, kCanOpen };
 
 struct VirtualRobotOptions {
   Bus bus = Bus::kCan;
   drivers::EmulatorConfig emulator{};  // joints are taken from the scene (N-1); fd, lifetime,
                                        // bus timing, clocks, faults as given
+  drivers::canopen::CanOpenEmulatorConfig canopen{};  // Bus::kCanOpen: node ids, units, faults
   PlantOptions plant{};
   int thread_priority = 0;  // SCHED_FIFO priority of the modules' thread (0: normal scheduling;
                             // refused → normal, said in thread_note())
@@ -176,6 +179,7 @@ class VirtualRobot {
   SimulationPlant& plant() { return *plant_; }
   drivers::ModuleBank& bank();
   const drivers::EmulatorStats& stats();
+  drivers::canopen::CanOpenModuleEmulator* canopen() { return canopen_.get(); }  // Bus::kCanOpen
   // Multi-line report: frames, faults injected, plant time, COM distance and speed.
   std::string report();
 
@@ -185,6 +189,7 @@ class VirtualRobot {
   std::unique_ptr<SimulationPlant> plant_;
   std::unique_ptr<drivers::CanModuleEmulator> can_;
   std::unique_ptr<drivers::SerialModuleEmulator> serial_;
+  std::unique_ptr<drivers::canopen::CanOpenModuleEmulator> canopen_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
   std::string thread_note_;
@@ -206,5 +211,7 @@ Pty open_pty();
 // (SO_RCVBUFFORCE when permitted) so a stalled modules' thread loses no host frame. Throws
 // std::system_error.
 int open_module_can_socket(const std::string& ifname, bool fd_frames);
+// The same for CANopen drives: NMT (000h), SYNC (080h), RPDOs (200h–3FFh), SDO requests (600h–67Fh).
+int open_canopen_module_socket(const std::string& ifname);
 
 }  // namespace pedalwave::vrobot

@@ -1,0 +1,143 @@
+// The SocketCAN driver's CANopen master (driver.protocol: canopen; drivers/PROTOCOL.md §7).
+//
+// Bring-up (the constructor; blocking, throws std::runtime_error naming the node, its joint and the
+// object): NMT reset communication to every node, wait for each configured node's boot-up;
+// per node by SDO (canopen::SdoClient, expedited and segmented): read 1000h (a CiA 402 device),
+// 1008h (name, a segmented upload), 608Fh:01/02, 6001h, 6076h (the units); map TPDO 1 = 6041h
+// statusword + 6064h position actual + 6077h torque actual, TPDO 2 = 606Ch velocity actual + 6004h
+// deflection (CiA 406 position value), RPDO 1 = 6040h controlword + 6071h target torque (CST) or
+// + 607Ah target position + 60B2h torque offset (CSP), RPDO 2 = 60B1h velocity offset (CSP), all
+// synchronous (transmission type 1); 1017h producer heartbeat; 6060h mode of operation; then NMT
+// start and the CiA 402 state machine to Switched On (shutdown → switch on; a drive in Fault gets a
+// fault reset first). An SDO abort is a refusal naming node, joint, object and the abort code.
+//
+// Cycle (Driver contract, allocation- and lock-free): read() sends SYNC, gathers every node's
+// TPDO 1 and TPDO 2 until the deadline (frames queued before the SYNC answer an older one: late);
+// write() sends RPDOs whose controlword is enable operation (0x0F), or disable operation (0x07,
+// the drive's output off) for Command::torque_off; the drives act on them at the next SYNC
+// (FeedbackTiming::kModule: a sample at its SYNC reports the command the previous SYNC put in
+// force, applied at that SYNC). CSP: a changed k_p / k_d
+// goes to 2010h / 2011h by one expedited SDO download at a time between the PDOs.
+// Heartbeat consumer: a node without heartbeat for heartbeat_timeout_s is lost; EMCY consumer: an
+// emergency with a non-zero code (or a statusword in Fault) is a drive fault. Either is latched,
+// named in fault_text() ("node 3 (joint 2): heartbeat lost …", "node 2 (joint 1): EMCY 2310h …"),
+// and the joint's feedback is reported kStatusMissing (lost) / kStatusStale | kStatusTorqueOff
+// (fault), which the runtime turns into its stale-data fault on that joint.
+// safe_stop(): RPDO 1 with disable operation and zero targets to every node, then a SYNC.
+#pragma once
+
+#include <linux/can.h>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "pedalwave/drivers/bus_budget.hpp"
+#include "pedalwave/drivers/canopen.hpp"
+#include "pedalwave/drivers/cia402.hpp"
+#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/drivers/socketcan_driver.hpp"
+
+namespace pedalwave::drivers {
+
+// SocketCanDriver (protocol kPedalwave) or CanOpenDriver (kCanOpen) on cfg.ifname.
+std::unique_ptr<Driver> open_socketcan(const SocketCanConfig& cfg);
+
+// Bus budget spec of a configuration (either protocol).
+CanBusSpec can_bus_spec(const SocketCanConfig& cfg) noexcept;
+
+class CanOpenDriver final : public Driver {
+ public:
+  // Opens cfg.ifname with filters for this master's COB-IDs and brings the nodes up.
+  static std::unique_ptr<CanOpenDriver> open(const SocketCanConfig& cfg);
+  // Injected transport (socket pair): takes ownership of `fd`; checks the budget, brings up.
+  CanOpenDriver(int fd, const SocketCanConfig& cfg);
+  ~CanOpenDriver() override;
+  CanOpenDriver(const CanOpenDriver&) = delete;
+  CanOpenDriver& operator=(const CanOpenDriver&) = delete;
+
+  int joints() const override { return joints_; }
+  IoStatus read(std::int64_t now_ns, std::int64_t deadline_ns, Feedback& out) override;
+  IoStatus write(const Command& cmd) override;
+  void safe_stop() override;
+  const DriverCounters& counters() const override { return counters_; }
+
+  // The first drive fault / lost node, named; "" while none.
+  const char* fault_text() const noexcept { return fault_text_.data(); }
+  int fault_joint() const noexcept { return fault_joint_; }  // −1: none
+  std::uint16_t emcy_code(int j) const { return emcy_[static_cast<std::size_t>(j)]; }
+  bool lost(int j) const { return lost_[static_cast<std::size_t>(j)]; }
+  cia402::State drive_state(int j) const;
+  double torque_actual(int j) const { return torque_[static_cast<std::size_t>(j)]; }  // [N·m]
+  std::uint64_t emcy_received() const { return emcy_count_; }
+  const std::string& device_name(int j) const { return names_[static_cast<std::size_t>(j)]; }
+  std::uint8_t node(int j) const { return node_[static_cast<std::size_t>(j)]; }
+
+ private:
+  enum class Tx : std::uint8_t { kOk, kDropped, kDown };
+  Tx send(const can_frame& f) noexcept;
+  // Bring-up helpers (not in the cycle).
+  void bring_up();
+  void send_blocking(const can_frame& f);
+  bool receive_until(std::int64_t deadline_ns, can_frame& f);
+  std::uint32_t sdo_upload(int j, std::uint16_t index, std::uint8_t sub, const char* what);
+  std::string sdo_upload_text(int j, std::uint16_t index, std::uint8_t sub, const char* what);
+  void sdo_download(int j, std::uint16_t index, std::uint8_t sub, std::uint32_t value, int bytes,
+                    const char* what);
+  void sdo_transfer(int j, can_frame req, std::uint16_t index, std::uint8_t sub, const char* what,
+                    const std::string& value_text);
+  std::string who(int j) const;
+  // Cycle.
+  void drain(std::int64_t rt_minus_mono_ns, bool before_sync) noexcept;
+  void handle(const can_frame& f, std::int64_t stamp_ns, bool before_sync) noexcept;
+  void note_fault(int j, const char* fmt, unsigned a, unsigned b, const char* text) noexcept;
+  void send_gains() noexcept;
+
+  int fd_ = -1;
+  int joints_ = 0;
+  SocketCanConfig cfg_;
+  DriverCounters counters_{};
+  SilenceMeter silence_;
+  std::uint64_t cycle_ = 0;
+  std::int64_t deadline_ns_ = 0;
+  std::int64_t sync_wire_ns_ = 0, sync_lower_ns_ = 0;
+  std::array<std::int64_t, 9> frame_wire_ns_{};  // a classic frame of n bytes on the wire [ns]
+  std::int64_t wire_busy_ns_ = 0;  // the bus is busy with frames sent / seen until then [ns]
+  bool bus_error_cycle_ = false, peer_closed_ = false, bus_off_ = false;
+  std::array<std::int8_t, 128> joint_of_node_{};
+  std::array<std::uint8_t, kMaxJoints> node_{};
+  std::array<std::string, kMaxJoints> names_{};
+  // Units per node.
+  std::array<double, kMaxJoints> rad_per_inc_{}, defl_rad_per_inc_{}, nm_per_permille_{};
+  // This cycle per joint.
+  std::array<bool, kMaxJoints> got1_{}, got2_{};
+  std::array<std::uint16_t, kMaxJoints> status_{};
+  // Last values per joint.
+  std::array<double, kMaxJoints> beta_{}, beta_dot_{}, defl_{}, torque_{};
+  std::array<std::uint16_t, kMaxJoints> statusword_{};
+  // Heartbeat / EMCY consumer.
+  std::array<std::int64_t, kMaxJoints> last_hb_ns_{};
+  std::array<bool, kMaxJoints> lost_{}, faulted_{};
+  std::array<std::uint16_t, kMaxJoints> emcy_{};
+  std::uint64_t emcy_count_ = 0;
+  std::int64_t hb_timeout_ns_ = 0;
+  std::array<char, 256> fault_text_{};
+  int fault_joint_ = -1;
+  // Commands: the seq written last (acts from the next SYNC) and the one the drives act on now.
+  std::uint64_t written_seq_ = kNoCommandSeq, acting_seq_ = kNoCommandSeq, prev_acting_seq_ = kNoCommandSeq;
+  std::int64_t prev_sync_ns_ = 0;  // the previous SYNC's lower bound [ns]
+  bool written_ = false;
+  // CSP gains by SDO: sent values, the transfer under way.
+  canopen::SdoClient sdo_;
+  std::array<double, kMaxJoints> sent_kp_{}, sent_kd_{}, want_kp_{}, want_kd_{};
+  std::array<bool, kMaxJoints> kp_sent_{}, kd_sent_{};
+  int sdo_joint_ = -1;
+  bool sdo_kp_ = false;
+  double sdo_value_ = 0;
+  std::int64_t sdo_started_ns_ = 0;
+  int gains_cursor_ = 0;
+  alignas(cmsghdr) std::array<char, 128> cmsg_buf_{};
+};
+
+}  // namespace pedalwave::drivers

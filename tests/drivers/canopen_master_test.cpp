@@ -1,0 +1,495 @@
+// The SocketCAN driver's CANopen master (protocol: canopen) against the module emulator's CANopen
+// personality over a SOCK_SEQPACKET socket pair (no PF_CAN needed): bring-up by NMT + SDO, CST and
+// CSP cycles with SYNC / PDOs, the heartbeat and EMCY consumers, refusals at configuration, the
+// bus budget, no allocation in the cycle; and the shipped EDS against the emulator's dictionary.
+#include <gtest/gtest.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+#include <thread>
+
+#include "alloc_counter.hpp"
+#include "cycle_harness.hpp"
+#include "pedalwave/drivers/bus_budget.hpp"
+#include "pedalwave/drivers/canopen_driver.hpp"
+#include "pedalwave/drivers/canopen_emulator.hpp"
+#include "test_plant.hpp"
+
+namespace pd = pedalwave::drivers;
+namespace co = pedalwave::drivers::canopen;
+using pedalwave::test::FirstOrderPlant;
+using pedalwave::test::now_ns;
+using pedalwave::test::sleep_until;
+
+namespace {
+
+constexpr std::int64_t kMs = 1'000'000;
+constexpr std::int64_t kPeriod = 4 * kMs;  // 250 Hz: 5 CANopen nodes fit a 1 Mbit/s bus
+
+pd::SocketCanConfig master_config(int joints, pd::CanOpenMode mode) {
+  pd::SocketCanConfig c;
+  c.joints = joints;
+  c.period_s = 1e-9 * kPeriod;
+  c.protocol = pd::CanProtocol::kCanOpen;
+  c.canopen.mode = mode;
+  c.canopen.heartbeat_s = 0.02;
+  c.canopen.heartbeat_timeout_s = 0.3;  // a loaded machine may hold the emulator's thread a while
+  return c;
+}
+
+// Emulated drives on one end of a socket pair (started first: the master's bring-up needs them).
+struct Bus {
+  int fds[2] = {-1, -1};
+  FirstOrderPlant plant;
+  std::unique_ptr<co::CanOpenModuleEmulator> emu;
+  std::atomic<bool> stop{false};
+  std::thread th;
+  Bus(int joints, pd::FaultConfig faults = {}, co::CanOpenEmulatorConfig cc = {}) {
+    if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, fds) != 0)
+      throw std::system_error(errno, std::generic_category(), "socketpair");
+    pd::EmulatorConfig ec;
+    ec.joints = joints;
+    ec.faults = faults;
+    emu = std::make_unique<co::CanOpenModuleEmulator>(fds[1], ec, cc, plant);
+    th = std::thread([this] { emu->run(stop); });
+  }
+  // Stops the emulated drives (the plant and the bank may be read afterwards). Idempotent.
+  void halt() {
+    stop = true;
+    if (th.joinable()) th.join();
+  }
+  ~Bus() {
+    halt();
+    ::close(fds[1]);
+    if (fds[0] >= 0) ::close(fds[0]);
+  }
+  int take_master_fd() {  // the driver owns it from now on
+    const int fd = fds[0];
+    fds[0] = -1;
+    return fd;
+  }
+};
+
+// Cycles at kPeriod: read, then a command from make(cmd, cycle).
+template <class Make>
+std::vector<pd::Feedback> run(pd::Driver& drv, int cycles, Make make, std::vector<pd::Command>* sent = nullptr) {
+  std::vector<pd::Feedback> log;
+  log.reserve(static_cast<std::size_t>(cycles));
+  pd::Feedback fb{};
+  pd::Command cmd{};
+  std::int64_t t = now_ns();
+  for (int i = 0; i < cycles; ++i) {
+    // A generous deadline, as the own protocol's tests: the machine may be loaded (the read
+    // returns as soon as every TPDO is in).
+    drv.read(t, t + 100 * kMs, fb);
+    log.push_back(fb);
+    cmd = pd::Command{};
+    cmd.joints = drv.joints();
+    cmd.seq = static_cast<std::uint64_t>(i + 1);
+    make(cmd, i);
+    drv.write(cmd);
+    if (sent) sent->push_back(cmd);
+    t += kPeriod;
+    if (t < now_ns()) t = now_ns();
+    sleep_until(t);
+  }
+  return log;
+}
+
+void torque_sine(pd::Command& c, int i) {
+  for (int j = 0; j < c.joints; ++j) c.tau[static_cast<std::size_t>(j)] = 0.05 * std::sin(0.05 * i + j);
+}
+
+}  // namespace
+
+// ---- The EDS ------------------------------------------------------------------------------------
+namespace {
+using Ini = std::map<std::string, std::map<std::string, std::string>>;
+Ini parse_ini(std::istream& in) {
+  Ini ini;
+  std::string section, line;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty() || line[0] == ';') continue;
+    if (line[0] == '[') {
+      section = line.substr(1, line.find(']') - 1);
+      ini[section];
+      continue;
+    }
+    const std::size_t eq = line.find('=');
+    if (eq != std::string::npos) ini[section][line.substr(0, eq)] = line.substr(eq + 1);
+  }
+  return ini;
+}
+std::string hex_index(unsigned v) {
+  char b[8];
+  std::snprintf(b, sizeof b, "%04X", v);
+  return b;
+}
+}  // namespace
+
+TEST(CanOpenEds, ShippedFileDescribesExactlyTheEmulatorsDictionary) {
+  std::ifstream in(PEDALWAVE_SOURCE_DIR "/drivers/canopen/pedalwave_module.eds");
+  ASSERT_TRUE(in) << "drivers/canopen/pedalwave_module.eds";
+  const Ini ini = parse_ini(in);
+  std::set<std::string> objects;  // every object / sub-object section of the file
+  for (const auto& [name, keys] : ini)
+    if (name.size() >= 4 && std::isxdigit(static_cast<unsigned char>(name[0])) && name.find("Objects") == std::string::npos &&
+        name != "FileInfo" && name != "DeviceInfo" && name != "DummyUsage")
+      objects.insert(name);
+  std::set<std::string> expected;
+  for (const co::ObjectEntry& e : co::module_dictionary()) {
+    const std::string idx = hex_index(e.index);
+    std::string sec = idx;
+    if (e.object != 7) {
+      char sub[8];
+      std::snprintf(sub, sizeof sub, "sub%X", e.sub);
+      sec += sub;
+      expected.insert(idx);
+      ASSERT_TRUE(ini.count(idx)) << idx;
+      EXPECT_EQ(ini.at(idx).at("ObjectType"), "0x" + std::to_string(e.object)) << idx;
+    }
+    expected.insert(sec);
+    SCOPED_TRACE(sec);
+    ASSERT_TRUE(ini.count(sec));
+    const auto& k = ini.at(sec);
+    EXPECT_EQ(k.at("ParameterName"), e.name);
+    EXPECT_EQ(std::stoul(k.at("DataType"), nullptr, 16), static_cast<unsigned>(e.type));
+    EXPECT_EQ(k.at("AccessType"), co::to_string(e.access));
+    EXPECT_EQ(k.at("PDOMapping"), e.pdo ? "1" : "0");
+    const std::string dv = k.at("DefaultValue");
+    if (e.type == co::DataType::kVisibleString) {
+      EXPECT_EQ(dv, e.text);
+    } else if (e.plus_node) {
+      EXPECT_NE(dv.find("$NODEID"), std::string::npos);
+      EXPECT_EQ(dv == "$NODEID" ? 0ul : std::stoul(dv, nullptr, 16), e.default_value);
+    } else {
+      EXPECT_EQ(std::stoul(dv, nullptr, 16), e.default_value);
+    }
+  }
+  EXPECT_EQ(objects, expected) << "objects in the EDS and in the emulator's dictionary";
+  // The object lists name every index once.
+  std::set<std::string> listed;
+  for (const char* l : {"MandatoryObjects", "OptionalObjects", "ManufacturerObjects"}) {
+    ASSERT_TRUE(ini.count(l)) << l;
+    const int n = std::stoi(ini.at(l).at("SupportedObjects"));
+    for (int i = 1; i <= n; ++i) listed.insert(ini.at(l).at(std::to_string(i)).substr(2));
+  }
+  std::set<std::string> indices;
+  for (const std::string& s : expected) indices.insert(s.substr(0, 4));
+  EXPECT_EQ(listed, indices);
+  EXPECT_EQ(ini.at("1000").at("DefaultValue"), "0x20192") << "a CiA 402 servo drive";
+}
+
+// ---- The master against the emulated drives ------------------------------------------------------
+TEST(CanOpenMaster, BringsUpEveryNodeAndRunsCstOverSyncAndPdos) {
+  constexpr int J = 4;
+  Bus bus(J);
+  pd::CanOpenDriver drv(bus.take_master_fd(), master_config(J, pd::CanOpenMode::kCst));
+  for (int j = 0; j < J; ++j) {
+    EXPECT_EQ(drv.device_name(j), "pedalwave SEA module") << "1008h by a segmented upload";
+    EXPECT_EQ(bus.emu->nmt(j), co::NmtState::kOperational);
+    EXPECT_EQ(bus.emu->drive(j), pd::cia402::State::kSwitchedOn) << "output off until commanded";
+  }
+  std::vector<pd::Command> sent;
+  const auto log = run(drv, 250, torque_sine, &sent);
+  for (int j = 0; j < J; ++j) EXPECT_EQ(bus.emu->drive(j), pd::cia402::State::kOperationEnabled);
+  bus.halt();
+  const pd::DriverCounters c = drv.counters();
+  EXPECT_EQ(c.missing, 0u);
+  EXPECT_EQ(c.late, 0u);
+  EXPECT_EQ(c.duplicate, 0u);
+  EXPECT_EQ(c.malformed, 0u);
+  EXPECT_GE(bus.emu->heartbeats_sent.load(), static_cast<std::uint64_t>(J) * 40) << "20 ms heartbeats over 1 s";
+  // The drives apply the target torque the master computed (‰ of 6076h = 2 N·m: 2 mN·m steps).
+  const pd::Command& last = bus.plant.last_command();
+  for (int j = 0; j < J; ++j) {
+    // The last RPDO waits for a SYNC: the one before it acts.
+    EXPECT_NEAR(last.tau[j], sent[sent.size() - 2].tau[j], 0.0011) << j;
+    EXPECT_EQ(last.kp[j], 0.0);
+    EXPECT_NEAR(drv.torque_actual(j), sent[sent.size() - 2].tau[j], 0.0021) << "6077h torque actual";
+  }
+  // Feedback is the plant's sample in rad (2^20 increments per revolution).
+  for (std::size_t i = 10; i < log.size(); ++i) {
+    for (int j = 0; j < J; ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      ASSERT_EQ(log[i].status[ju] & ~pd::kStatusTorqueOff, 0) << "cycle " << i << " joint " << j << " missing "
+                                                                << c.missing << " late " << c.late;
+      // The command written in cycle i − 2 acted from the previous SYNC up to this sample (the
+      // one written in cycle i − 1 takes effect at this SYNC).
+      EXPECT_EQ(log[i].applied_seq[ju], sent[i - 2].seq);
+      EXPECT_EQ(log[i].applied_ns[ju], log[i - 1].sample_ns[ju]);
+      EXPECT_GT(log[i].sample_ns[ju], log[i - 1].sample_ns[ju]);
+    }
+  }
+  const pd::Feedback& m = bus.plant.last_measured();
+  for (int j = 0; j < J; ++j) {
+    EXPECT_NEAR(log.back().beta[j], m.beta[j], 2 * 6.3e-6 + 1e-3) << "the last sample (one SYNC later at most)";
+    EXPECT_GT(std::abs(log.back().beta[j]) + std::abs(log[100].beta[j]), 1e-3) << "the plant moved";
+  }
+}
+
+TEST(CanOpenMaster, RunsCspWithTheDrivesPositionLoop) {
+  constexpr int J = 3;
+  Bus bus(J);
+  pd::CanOpenDriver drv(bus.take_master_fd(), master_config(J, pd::CanOpenMode::kCsp));
+  std::vector<pd::Command> sent;
+  const auto log = run(drv, 300, [](pd::Command& c, int i) { pedalwave::test::make_command(c, c.joints, i * kPeriod); }, &sent);
+  bus.halt();
+  const pd::Command& last = bus.plant.last_command();
+  for (int j = 0; j < J; ++j) {
+    EXPECT_FLOAT_EQ(static_cast<float>(last.kp[j]), 2.0f) << "2010h by SDO between the PDOs";
+    EXPECT_FLOAT_EQ(static_cast<float>(last.kd[j]), 0.05f) << "2011h";
+    EXPECT_NEAR(last.beta_ref[j], sent[sent.size() - 2].beta_ref[j], 1e-5) << "607Ah target position";
+    EXPECT_NEAR(last.beta_dot_ref[j], sent[sent.size() - 2].beta_dot_ref[j], 1e-5) << "60B1h velocity offset";
+    EXPECT_NEAR(last.tau[j], 0.01, 0.0011) << "60B2h torque offset";
+    // The drive's position loop tracks the reference (the plant's lag: well under 0.1 rad).
+    EXPECT_NEAR(log.back().beta[j], sent[sent.size() - 2].beta_ref[j], 0.1) << j;
+  }
+  EXPECT_EQ(drv.counters().missing, 0u);
+  EXPECT_EQ(drv.fault_joint(), -1) << drv.fault_text();
+}
+
+TEST(CanOpenMaster, ANodeThatFallsSilentIsAHeartbeatFaultNamingIt) {
+  constexpr int J = 3;
+  pd::FaultConfig f;
+  f.module[1].silent = true;
+  f.onset_sync = 50;
+  Bus bus(J, f);
+  pd::CanOpenDriver drv(bus.take_master_fd(), master_config(J, pd::CanOpenMode::kCst));
+  const auto log = run(drv, 200, torque_sine);
+  EXPECT_TRUE(drv.lost(1));
+  EXPECT_FALSE(drv.lost(0));
+  EXPECT_FALSE(drv.lost(2));
+  EXPECT_EQ(drv.fault_joint(), 1);
+  EXPECT_EQ(std::string(drv.fault_text()).rfind("CANopen node 2 (joint 1): heartbeat lost: none for ", 0), 0u)
+      << drv.fault_text();
+  EXPECT_NE(std::string(drv.fault_text()).find("(consumer time 300 ms)"), std::string::npos) << drv.fault_text();
+  EXPECT_TRUE(log.back().status[1] & pd::kStatusMissing);
+  EXPECT_EQ(log.back().status[0] & pd::kStatusMissing, 0);
+  EXPECT_EQ(log.back().status[2] & pd::kStatusMissing, 0);
+}
+
+TEST(CanOpenMaster, AnEmcyIsANamedDriveFaultOnItsJoint) {
+  constexpr int J = 3;
+  co::CanOpenEmulatorConfig cc;
+  cc.emcy_joint = 2;
+  cc.emcy_at_sync = 60;
+  cc.emcy_code = 0x2310;
+  Bus bus(J, {}, cc);
+  pd::CanOpenDriver drv(bus.take_master_fd(), master_config(J, pd::CanOpenMode::kCst));
+  const auto log = run(drv, 100, torque_sine);
+  EXPECT_EQ(drv.fault_joint(), 2);
+  EXPECT_STREQ(drv.fault_text(),
+               "CANopen node 3 (joint 2): EMCY 2310h, error register 03h: continuous over-current (device output side)");
+  EXPECT_EQ(drv.emcy_code(2), 0x2310);
+  EXPECT_EQ(bus.emu->drive(2), pd::cia402::State::kFault);
+  bus.halt();
+  EXPECT_TRUE(bus.emu->bank().torque_off(2)) << "the faulted drive's output is off";
+  EXPECT_FALSE(bus.emu->bank().torque_off(0));
+  EXPECT_EQ(log.back().status[2] & (pd::kStatusStale | pd::kStatusTorqueOff), pd::kStatusStale | pd::kStatusTorqueOff);
+  EXPECT_EQ(log.back().status[0] & pd::kStatusStale, 0);
+  EXPECT_FALSE(drv.lost(2)) << "its heartbeat goes on";
+}
+
+TEST(CanOpenMaster, ADriveInFaultIsResetAtBringUp) {
+  constexpr int J = 2;
+  co::CanOpenEmulatorConfig cc;
+  cc.fault_at_boot_joint = 1;
+  Bus bus(J, {}, cc);
+  ASSERT_EQ(bus.emu->drive(1), pd::cia402::State::kFault);
+  pd::CanOpenDriver drv(bus.take_master_fd(), master_config(J, pd::CanOpenMode::kCst));
+  EXPECT_EQ(bus.emu->drive(1), pd::cia402::State::kSwitchedOn) << "fault reset, shutdown, switch on";
+  EXPECT_GE(bus.emu->emcy_sent.load(), 1u) << "the drive's EMCY error reset";
+  run(drv, 20, torque_sine);
+  EXPECT_EQ(drv.fault_joint(), -1) << drv.fault_text();
+  EXPECT_EQ(bus.emu->drive(1), pd::cia402::State::kOperationEnabled);
+}
+
+TEST(CanOpenMaster, AnSdoAbortAtConfigurationIsARefusalNamingNodeAndObject) {
+  co::CanOpenEmulatorConfig cc;
+  cc.refuse_joint = 1;
+  cc.refuse_index = 0x1A01;
+  Bus bus(3, {}, cc);
+  try {
+    pd::CanOpenDriver drv(bus.take_master_fd(), master_config(3, pd::CanOpenMode::kCst));
+    FAIL() << "started although node 2 refused its TPDO 2 mapping";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(),
+                 "CANopen node 2 (joint 1): SDO download of 1A01h:00 (TPDO mapping count) = 00h refused: abort "
+                 "06090030h invalid value for parameter");
+  }
+}
+
+TEST(CanOpenMaster, ANodeThatNeverBootsIsNamed) {
+  pd::FaultConfig f;
+  f.module[2].silent = true;
+  f.onset_sync = 0;
+  Bus bus(3, f);
+  pd::SocketCanConfig c = master_config(3, pd::CanOpenMode::kCst);
+  c.canopen.boot_timeout_s = 0.3;
+  try {
+    pd::CanOpenDriver drv(bus.take_master_fd(), c);
+    FAIL() << "started without node 3";
+  } catch (const std::runtime_error& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("CANopen: no boot-up message from node 3 (joint 2) within 0.3", 0), 0u)
+        << e.what();
+  }
+}
+
+TEST(CanOpenMaster, SafeStopDisablesEveryDrivesOutput) {
+  constexpr int J = 3;
+  Bus bus(J);
+  pd::CanOpenDriver drv(bus.take_master_fd(), master_config(J, pd::CanOpenMode::kCst));
+  run(drv, 30, torque_sine);
+  ASSERT_EQ(bus.emu->stats().torque_off_cmds.load(), 0u) << "every drive enabled while commanded";
+  drv.safe_stop();
+  EXPECT_TRUE(pedalwave::test::wait_for(
+      [&] { return bus.emu->stats().torque_off_cmds.load() >= static_cast<std::uint64_t>(J); }, 2'000 * kMs));
+  bus.halt();
+  for (int j = 0; j < J; ++j) {
+    EXPECT_TRUE(bus.emu->bank().torque_off(j)) << j;
+    EXPECT_EQ(bus.emu->drive(j), pd::cia402::State::kSwitchedOn) << "disable operation";
+  }
+}
+
+TEST(CanOpenMaster, SteadyStateReadWriteAllocateNothing) {
+  for (pd::CanOpenMode mode : {pd::CanOpenMode::kCst, pd::CanOpenMode::kCsp}) {
+    Bus bus(3);
+    pd::CanOpenDriver drv(bus.take_master_fd(), master_config(3, mode));
+    run(drv, 20, [](pd::Command& c, int i) { pedalwave::test::make_command(c, c.joints, i * kPeriod); });
+    pd::Feedback fb{};
+    pd::Command cmd{};
+    std::uint64_t allocs = 0;
+    for (int i = 0; i < 100; ++i) {
+      pedalwave::test::make_command(cmd, 3, i * kPeriod);
+      cmd.kp[0] = 2.0 + 0.01 * (i % 3);  // gains change: the SDO path runs as well (CSP)
+      const std::int64_t t = now_ns();
+      pedalwave::test::AllocationScope scope;
+      drv.read(t, t + 100 * kMs, fb);
+      drv.write(cmd);
+      allocs += scope.count();
+      sleep_until(t + kPeriod);
+    }
+    EXPECT_EQ(allocs, 0u) << (mode == pd::CanOpenMode::kCsp ? "CSP" : "CST");
+    EXPECT_GT(drv.counters().frames_rx, 500u);
+  }
+}
+
+// ---- The bus budget ------------------------------------------------------------------------------
+TEST(CanOpenBudget, CoversSyncRpdosTpdosAndHeartbeatsAndRefusesWhatDoesNotFit) {
+  pd::SocketCanConfig c = master_config(5, pd::CanOpenMode::kCst);
+  // Per cycle: SYNC (0 bytes) + 5 × (RPDO 4 bytes + 2 TPDOs of 8 bytes), worst-case stuffing.
+  const double per_cycle = pd::can_classic_frame_bits(0) +
+                           5 * (pd::can_classic_frame_bits(4) + 2 * pd::can_classic_frame_bits(8));
+  c.canopen.heartbeat_s = 0;
+  pd::BusBudget b = pd::can_bus_budget(pd::can_bus_spec(c));
+  EXPECT_EQ(b.frames, 16);
+  EXPECT_DOUBLE_EQ(b.time_needed_s, per_cycle / 1e6);
+  c.canopen.heartbeat_s = 0.02;
+  b = pd::can_bus_budget(pd::can_bus_spec(c));
+  EXPECT_DOUBLE_EQ(b.time_needed_s, (per_cycle + 5 * pd::can_classic_frame_bits(1) * 0.004 / 0.02) / 1e6);
+  c.canopen.mode = pd::CanOpenMode::kCsp;  // RPDO 1 of 8 bytes + RPDO 2 of 4
+  const pd::BusBudget csp = pd::can_bus_budget(pd::can_bus_spec(c));
+  EXPECT_EQ(csp.frames, 21);
+  EXPECT_GT(csp.time_needed_s, b.time_needed_s);
+  // 5 CST nodes at 1 kHz do not fit 1 Mbit/s (the own protocol's frame set does).
+  c.canopen.mode = pd::CanOpenMode::kCst;
+  c.period_s = 1e-3;
+  try {
+    pd::check_can_bus_budget(pd::can_bus_spec(c));
+    FAIL() << "1 kHz accepted";
+  } catch (const std::invalid_argument& e) {
+    const std::string m = e.what();
+    EXPECT_EQ(m.rfind("CAN bus budget exceeded: CANopen (CST) with 5 nodes at 1000 Hz on classic CAN at 1 Mbit/s", 0), 0u) << m;
+    EXPECT_NE(m.find("at most 2 nodes per bus"), std::string::npos) << m;
+  }
+  c.protocol = pd::CanProtocol::kPedalwave;
+  c.fd = true;
+  EXPECT_TRUE(pd::can_bus_budget(pd::can_bus_spec(c)).fits);
+  c.fd = false;
+  // And the driver refuses it before touching the bus.
+  c.protocol = pd::CanProtocol::kCanOpen;
+  c.max_load = 0.8;
+  EXPECT_THROW(pd::CanOpenDriver(-1, c), std::invalid_argument);
+}
+
+// ---- The emulated drive's SDO server: CiA 301's PDO mapping procedure -----------------------------
+namespace {
+// One SDO transfer with node 1 over the socket pair: the abort code (0 = done).
+std::uint32_t sdo(int fd, bool download, std::uint16_t index, std::uint8_t sub, std::uint32_t value, int bytes,
+                  std::uint32_t* read = nullptr) {
+  co::SdoClient c;
+  can_frame f{};
+  std::array<std::uint8_t, 4> b{};
+  for (int i = 0; i < 4; ++i) b[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(value >> (8 * i));
+  if (download) c.start_download(1, index, sub, std::span<const std::uint8_t>(b.data(), static_cast<std::size_t>(bytes)), f);
+  else c.start_upload(1, index, sub, f);
+  EXPECT_EQ(::send(fd, &f, CAN_MTU, 0), static_cast<ssize_t>(CAN_MTU));
+  const std::int64_t give_up = now_ns() + 2'000 * kMs;
+  while (now_ns() < give_up) {
+    can_frame r{};
+    const ssize_t n = ::recv(fd, &r, sizeof r, MSG_DONTWAIT);
+    if (n != static_cast<ssize_t>(CAN_MTU)) {
+      sleep_until(now_ns() + kMs / 2);
+      continue;
+    }
+    can_frame next{};
+    switch (c.on_frame(r, next)) {
+      case co::SdoStep::kIgnored: continue;
+      case co::SdoStep::kSend: ::send(fd, &next, CAN_MTU, 0); continue;
+      case co::SdoStep::kDone:
+        if (read) {
+          *read = 0;
+          for (std::size_t i = 0; i < c.data().size() && i < 4; ++i) *read |= std::uint32_t{c.data()[i]} << (8 * i);
+        }
+        return 0;
+      case co::SdoStep::kAbort: return c.abort_code();
+    }
+  }
+  ADD_FAILURE() << "no SDO answer";
+  return ~0u;
+}
+}  // namespace
+
+TEST(CanOpenEmulatedDrive, PdoMappingFollowsCia301sProcedure) {
+  Bus bus(1);
+  const int fd = bus.fds[0];
+  // A mapping changes only while its PDO's COB-ID is invalid, entries only while the count is 0.
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 1, 0x60640020, 4), 0x08000022u) << "TPDO 1 valid: device state";
+  EXPECT_EQ(sdo(fd, true, 0x1800, 1, 0x80000181, 4), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 1, 0x60640020, 4), 0x08000022u) << "count still 1";
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 0, 0, 1), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 1, 0x10000020, 4), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 0, 1, 1), co::kAbortNotMappable) << "1000h is not PDO-mappable";
+  for (std::uint8_t k = 1; k <= 3; ++k) EXPECT_EQ(sdo(fd, true, 0x1A00, k, 0x60640020, 4), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 0, 3, 1), co::kAbortPdoLength) << "96 bits";
+  EXPECT_EQ(sdo(fd, true, 0x1A00, 0, 2, 1), 0u) << "64 bits";
+  // An RPDO maps writable objects only; the COB-ID changes only while invalid.
+  EXPECT_EQ(sdo(fd, true, 0x1400, 1, 0x80000201, 4), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1600, 0, 0, 1), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1600, 1, 0x60410010, 4), 0u);
+  EXPECT_EQ(sdo(fd, true, 0x1600, 0, 1, 1), co::kAbortNotMappable) << "the statusword is read-only";
+  EXPECT_EQ(sdo(fd, true, 0x1800, 1, 0x00000190, 4), 0u) << "invalid → valid with a new id";
+  EXPECT_EQ(sdo(fd, true, 0x1800, 1, 0x00000191, 4), co::kAbortValueRange) << "valid → another id";
+  // Types, access, existence.
+  EXPECT_EQ(sdo(fd, true, 0x6041, 0, 0, 2), co::kAbortReadOnly);
+  EXPECT_EQ(sdo(fd, true, 0x6040, 0, 6, 4), co::kAbortLengthHigh);
+  EXPECT_EQ(sdo(fd, true, 0x6060, 0, 9, 1), co::kAbortValueRange) << "CSV is not offered";
+  EXPECT_EQ(sdo(fd, false, 0x6502, 0, 0, 0), co::kAbortNoObject);
+  EXPECT_EQ(sdo(fd, false, 0x1018, 7, 0, 0), co::kAbortNoSubindex);
+  std::uint32_t v = 0;
+  EXPECT_EQ(sdo(fd, false, 0x1018, 4, 0, 0, &v), 0u);
+  EXPECT_EQ(v, 1u) << "serial number = node id";
+  EXPECT_EQ(sdo(fd, false, 0x1000, 0, 0, 0, &v), 0u);
+  EXPECT_EQ(v, co::kDeviceType);
+}

@@ -17,6 +17,8 @@ pkgs+=(libwebsockets-dev nlohmann-json3-dev)
 # DDS Security: the keystore checks (libssl-dev) and tools/scripts/keystore.sh (openssl); the
 # Cyclone security plugins come with libddsc0debian.
 pkgs+=(libssl-dev openssl)
+# pedalwave_identify: NLopt's derivative-free optimizers (BOBYQA, Subplex).
+pkgs+=(libnlopt-dev)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

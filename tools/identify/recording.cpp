@@ -40,22 +40,14 @@ Recording read_recording_csv(const fs::path& file) {
     r.u.push_back(col("u_" + s));
   }
   if (c.has("theta_N_dot")) {
-    // θ_j = θ_N + Σ_{k ≥ j} α_k.
-    const auto& tn = c.column("theta_N_dot");
     std::vector<std::vector<double>> ad;
     for (int j = 1; j <= r.joints; ++j) {
       if (!c.has("alpha_" + std::to_string(j) + "_dot")) { ad.clear(); break; }
       ad.push_back(c.column("alpha_" + std::to_string(j) + "_dot"));
     }
     if (!ad.empty()) {
-      r.theta_dot.assign(static_cast<std::size_t>(r.joints), std::vector<double>(r.t.size()));
-      for (std::size_t k = 0; k < r.t.size(); ++k) {
-        double acc = tn[k];
-        for (int j = r.joints - 1; j >= 0; --j) {
-          acc += ad[static_cast<std::size_t>(j)][k];
-          r.theta_dot[static_cast<std::size_t>(j)][k] = acc;
-        }
-      }
+      r.alpha_dot = ad;
+      r.theta_N_dot = c.column("theta_N_dot");
     }
   }
   if (r.t.size() < 3) throw std::runtime_error(file.string() + ": " + std::to_string(r.t.size()) + " rows: expected a walk (≥ 3)");
@@ -75,12 +67,21 @@ void write_recording_csv(const Recording& r, const fs::path& file) {
   for (int j = 1; j <= J; ++j) names.push_back("beta_" + std::to_string(j));
   for (int j = 1; j <= J; ++j) names.push_back("beta_" + std::to_string(j) + "_dot");
   for (int j = 1; j <= J; ++j) names.push_back("u_" + std::to_string(j));
+  const bool rates = !r.theta_N_dot.empty();
+  if (rates) {
+    for (int j = 1; j <= J; ++j) names.push_back("alpha_" + std::to_string(j) + "_dot");
+    names.push_back("theta_N_dot");
+  }
   toolkit::CsvWriter w(file, names);
   std::vector<double> row;
   for (std::size_t k = 0; k < r.t.size(); ++k) {
     row.assign(1, r.t[k]);
     for (const auto* v : {&r.alpha, &r.beta, &r.beta_dot, &r.u})
       for (int j = 0; j < J; ++j) row.push_back((*v)[static_cast<std::size_t>(j)][k]);
+    if (rates) {
+      for (int j = 0; j < J; ++j) row.push_back(r.alpha_dot[static_cast<std::size_t>(j)][k]);
+      row.push_back(r.theta_N_dot[k]);
+    }
     w.row(row);
   }
   w.close();
@@ -92,7 +93,19 @@ MotorFit fit_motor(const Recording& r, const MotorFitOptions& o) {
   const auto per = static_cast<std::size_t>(std::max<long>(1, std::lround(o.window / h)));
   std::size_t first = static_cast<std::size_t>(std::lround(o.skip / h));
   MotorFit f;
-  f.theta_term = !r.theta_dot.empty();
+  f.theta_term = !r.theta_N_dot.empty() && static_cast<int>(r.alpha_dot.size()) == J;
+  // θ̇_j = θ̇_N + Σ_{k≥j} α̇_k (model-spec.md §1).
+  std::vector<std::vector<double>> theta_dot;
+  if (f.theta_term) {
+    theta_dot.assign(static_cast<std::size_t>(J), std::vector<double>(r.t.size()));
+    for (std::size_t k = 0; k < r.t.size(); ++k) {
+      double acc = r.theta_N_dot[k];
+      for (int j = J - 1; j >= 0; --j) {
+        acc += r.alpha_dot[static_cast<std::size_t>(j)][k];
+        theta_dot[static_cast<std::size_t>(j)][k] = acc;
+      }
+    }
+  }
   const std::size_t windows = first + per < r.t.size() ? (r.t.size() - 1 - first) / per : 0;
   if (windows < 4) throw std::invalid_argument("recording " + r.source + ": too short for windows of " + std::to_string(o.window) + " s");
   const auto rows = static_cast<Eigen::Index>(windows * static_cast<std::size_t>(J));
@@ -112,14 +125,16 @@ MotorFit fit_motor(const Recording& r, const MotorFitOptions& o) {
       double iu = 0, idef = 0;
       for (std::size_t k = a; k < b; ++k) {
         idef += 0.5 * h * ((be[k] - al[k]) + (be[k + 1] - al[k + 1]));
-        // The torque applied over period k: the command, plus the module PD's change along it.
+        // The torque applied over period k: the command, plus the module PD's change along it,
+        // −K_p ∫(β − β_k) − K_D ∫(β̇ − β̇_k) = −K_p (∫β − h β_k) − K_D (β_{k+1} − β_k − h β̇_k):
+        // the β̇ integral exactly from the encoder (the motor's fast dynamics, n² I_r / K_D below
+        // a period, make β̇ far from linear within one).
         double uk = u[k] * h;
         if (o.module_pd)
           uk -= o.K_p * (0.5 * h * (be[k] + be[k + 1]) - be[k] * h) + o.K_D * ((be[k + 1] - be[k]) - bd[k] * h);
         iu += uk;
-      }
-      double ir = s_ir * (bd[b] - bd[a]);
-      if (f.theta_term) ir -= o.n * (r.theta_dot[static_cast<std::size_t>(j)][b] - r.theta_dot[static_cast<std::size_t>(j)][a]);
+      }      double ir = s_ir * (bd[b] - bd[a]);
+      if (f.theta_term) ir -= o.n * (theta_dot[static_cast<std::size_t>(j)][b] - theta_dot[static_cast<std::size_t>(j)][a]);
       A(row, j) = idef;
       A(row, J) = be[b] - be[a];
       A(row, J + 1) = ir / s_ir;

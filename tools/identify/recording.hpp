@@ -5,10 +5,13 @@
 // (model-spec.md §4) for joint j,
 //     n² I_r β̈_j − n I_r θ̈_j + K_j (β_j − α_j) + b β̇_j = u_j(t),
 // integrated over windows [t_a, t_b] of whole control periods so that no signal is differentiated:
-//     ∫u_j dt = K_j ∫(β_j − α_j) dt + b (β_j(t_b) − β_j(t_a)) + I_r [n² Δβ̇_j − n Δθ̇_j].
+//     ∫u_j dt = K_j ∫(β_j − α_j) dt + b ∫β̇_j dt + I_r [n² Δβ̇_j − n Δθ̇_j].
 // u_j(t) is the torque the module applies within each period: with the PD on the module
 // (pd placement module, the default) the recorded command u_k plus the PD's change along the
-// period, u_k − K_p (β(t) − β_k) − K_D (β̇(t) − β̇_k); with the PD on the host, u_k held. The
+// period, u_k − K_p (β(t) − β_k) − K_D (β̇(t) − β̇_k); with the PD on the host, u_k held. ∫β̇ is
+// taken from the encoder (β_b − β_a), exact whatever the motor's fast dynamics within a period
+// (n² I_r / K_D is below a period): the encoder's noise enters ×K_D, which a motor-side encoder
+// (output resolution 2π / (counts · n), ~6e-6 rad for 4096 counts and n = 255) keeps small. The
 // unknowns K_1 … K_{N−1}, b and I_r enter linearly; the windows' residuals give their standard
 // errors. The θ̇ term (a 1/n correction) is used when the recording has θ̇ (simulated recordings);
 // without it I_r is biased by O(1/n).
@@ -32,7 +35,10 @@ struct Recording {
   int joints = 0;
   std::vector<double> t;                                  // [s]
   std::vector<std::vector<double>> alpha, beta, beta_dot, u;  // [rad], [rad], [rad/s], [N·m]
-  std::vector<std::vector<double>> theta_dot;             // absolute link rates θ̇_j [rad/s]; empty = not recorded
+  // Optional (simulated recordings): α̇_j and θ̇_N, for the absolute link rates θ̇_j = θ̇_N + Σ_{k≥j} α̇_k
+  // of the motor rows' 1/n term; empty = not recorded.
+  std::vector<std::vector<double>> alpha_dot;             // [rad/s]
+  std::vector<double> theta_N_dot;                        // [rad/s]
   std::string source;
 };
 

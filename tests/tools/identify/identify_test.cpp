@@ -103,7 +103,7 @@ TEST(IdentifyFit, EvaluationsAreDeterministicAcrossThreadsAndBatches) {
   const auto ma = a.evaluate({{2.0}, {5.0}}, "a");
   const auto mb = b.evaluate({{5.0}}, "b");
   const auto mb2 = b.evaluate({{2.0}, {5.0}}, "b2");  // 2.0 new, 5.0 from the cache
-  EXPECT_EQ(b.cache_hits(), 1u);
+  EXPECT_EQ(b.cache_hits(), 2u);  // K = 5's two runs (flat 0.82 and 0.40)
   EXPECT_EQ(std::memcmp(&ma[1].v_flat_high, &mb[0].v_flat_high, sizeof(double)), 0);
   EXPECT_EQ(std::memcmp(&ma[0].v_flat_low, &mb2[0].v_flat_low, sizeof(double)), 0);
   EXPECT_TRUE(std::isfinite(ma[0].v_flat_high));
@@ -111,49 +111,45 @@ TEST(IdentifyFit, EvaluationsAreDeterministicAcrossThreadsAndBatches) {
   fs::remove_all(d);
 }
 
-// Targets made by the simulator at K = 6, I_r = 1.5e-7: the fit (two parameters, two figures,
-// started at the shipped K = 3, I_r = 5e-8) must find them again. The targets are exact (the
-// simulation is deterministic), so the tolerance is the optimizer's: xtol in the normalized
-// coordinate, as a factor exp(xtol · ln(max/min)) on a log-scale parameter, times 10 for the
-// fit's conditioning (the approximate σ the fit reports, in units of 1e-6 target tolerances).
-TEST(IdentifyFit, RecoversParametersFromTargetsTheSimulatorMade) {
+// A target made by the simulator at ground k = 700 N/m (flat speed, 4 s runs): the fit (started at
+// the shipped 350 N/m, one parameter, LN_SBPLX) must find it again. The tolerance, 0.01 cm/s, is
+// what the simulation resolves as a smooth function of k (the speed wiggles by ~0.005 cm/s between
+// neighbouring k; the friction gain of 4 s runs wiggles by ±0.5 points and is no test target). The
+// fit must reach the target within it, and k within 3 of the σ it reports (the change of k that
+// moves the speed by one tolerance) plus the optimizer's xtol; that σ must be small against the
+// start's error for the test to mean something.
+TEST(IdentifyFit, RecoversAParameterFromTargetsTheSimulatorMade) {
   const fs::path d = temp_dir("recover");
-  const auto pf = write(d / "p.yaml",
-                        "parameters:\n  - {name: K, min: 1, max: 20, reason: test}\n"
-                        "  - {name: I_r, min: 1.0e-8, max: 1.0e-6, reason: test}\n");
-  // The figures at the true parameters.
+  const auto pf = write(d / "p.yaml", "parameters:\n  - {name: ground_k, min: 100, max: 5000, reason: test}\n");
   const auto probe_t = write(d / "probe.yaml",
                              "targets:\n  - {measure: flat_speed, value: 0, tolerance: 1}\n"
                              "  - {measure: friction_gain, value: 0, tolerance: 1}\n");
   Evaluator probe(load_params(pf.string()), load_targets(probe_t.string()), short_settings(2));
-  const Measures truth = probe.evaluate({{6.0, 1.5e-7}}, "truth").front();
+  const Measures truth = probe.evaluate({{700.0}}, "truth").front();
   std::ostringstream tt;
   tt.precision(17);
-  tt << "targets:\n  - {measure: flat_speed, value: " << truth.get(Measure::flat_speed) << ", tolerance: 1.0e-5}\n"
-     << "  - {measure: friction_gain, value: " << truth.get(Measure::friction_gain) << ", tolerance: 1.0e-4}\n";
+  tt << "targets:\n  - {measure: flat_speed, value: " << truth.get(Measure::flat_speed) << ", tolerance: 1.0e-4}\n";
   const auto tf = write(d / "t.yaml", tt.str());
   FitSettings s = short_settings(2);
-  s.starts = 6;
-  s.max_evals = 80;
-  s.xtol = 1e-5;
+  s.starts = 4;
+  s.max_evals = 60;
+  s.xtol = 1e-4;
   Evaluator ev(load_params(pf.string()), load_targets(tf.string()), s);
   const FitResult r = fit(ev);
-  ASSERT_EQ(r.params.size(), 2u);
-  for (double res : r.residuals) EXPECT_LT(std::abs(res), 1.0);  // within the targets' tolerances
-  const double kK = std::exp(10 * s.xtol * std::log(20.0 / 1.0)), kI = std::exp(10 * s.xtol * std::log(100.0));
-  EXPECT_LT(std::abs(std::log(r.params[0].value / 6.0)), std::log(kK) + std::log(r.params[0].sigma_hi / r.params[0].value))
-      << "K = " << r.params[0].value;
-  EXPECT_LT(std::abs(std::log(r.params[1].value / 1.5e-7)), std::log(kI) + std::log(r.params[1].sigma_hi / r.params[1].value))
-      << "I_r = " << r.params[1].value;
-  // Both determined, with finite sensitivities and two singular values.
-  EXPECT_TRUE(std::isfinite(r.params[0].sigma_lo));
-  EXPECT_TRUE(std::isfinite(r.params[1].sigma_lo));
-  EXPECT_EQ(r.singular_values.size(), 2u);
-  // The fitted scenes carry the values and load.
+  ASSERT_EQ(r.params.size(), 1u);
+  for (double res : r.residuals)
+    EXPECT_LT(std::abs(res), 1.0) << r.nlopt_status << ", " << r.evaluations << " evaluations";
+  const ParamReport& k = r.params[0];
+  ASSERT_TRUE(std::isfinite(k.sigma_hi));
+  const double sig = std::log(k.sigma_hi / k.value), x = s.xtol * std::log(5000.0 / 100.0);
+  EXPECT_LT(std::abs(std::log(k.value / 700.0)), x + 3 * sig) << "k = " << k.value << " (" << k.sigma_lo << " … " << k.sigma_hi << ")";
+  EXPECT_LT(3 * sig, 0.25 * std::log(700.0 / 350.0));
+  EXPECT_EQ(r.singular_values.size(), 1u);
+  EXPECT_EQ(k.sensitivity.size(), 1u);
+  // The fitted scenes carry the value and load.
   for (const auto& [stem, yaml] : ev.fitted_scene_yaml(r.best)) {
     const model::Scene sc = config::parse_scene(yaml, stem);
-    EXPECT_DOUBLE_EQ(sc.robot.stiffness(0), r.best[0]) << stem;
-    EXPECT_DOUBLE_EQ(sc.robot.I_r, r.best[1]) << stem;
+    EXPECT_DOUBLE_EQ(sc.ground.k, r.best[0]) << stem;
   }
   fs::remove_all(d);
 }
@@ -287,14 +283,19 @@ TEST(IdentifyData, RecoversKFrictionIrAndGroundMuFromANoisyRecording) {
   EXPECT_LT(g0.mu_sigma, 0.1 * tr.mu);
   const double expect = std::sqrt(0.5 * (sd * sd + sb * sb + sd * sd));
   EXPECT_LT(g0.rms, 1.5 * expect) << "model mismatch beyond the noise";
-  // End to end (stage 1's estimates): stage 1's tolerance carried through stage 2. Its largest part
-  // is b's (4 σ_b + K_p h_s / 2): μ with b at that bound, the rest true, bounds μ's shift.
+  // End to end (stage 1's estimates): stage 1's tolerance carried through stage 2. The motor
+  // parameters at the corner of stage 1's tolerance box on the side the estimates lie (K_j and I_r
+  // at 4 σ, b at 4 σ + K_p h_s / 2, I_r + its 2/n bias): μ's shift there bounds the shift the
+  // estimates cause (μ is smooth and monotone in them over so small a box).
   MotorFit worst = exact;
-  worst.b = tr.b + 4 * f.b_se + kKp * kPlantStep / 2;
+  auto corner = [](double truth, double est, double tol) { return truth + std::copysign(tol, est - truth); };
+  for (std::size_t j = 0; j < tr.K.size(); ++j) worst.K[j] = corner(tr.K[j], f.K[j], 4 * f.K_se[j]);
+  worst.b = corner(tr.b, f.b, 4 * f.b_se + kKp * kPlantStep / 2);
+  worst.I_r = corner(tr.I_r, f.I_r, 4 * f.I_r_se + 2.0 / 255 * tr.I_r);
   const GroundFit gw = fit_ground_mu(d / "walk.csv", yaml, worst, go);
   const GroundFit g = fit_ground_mu(d / "walk.csv", yaml, f, go);
   EXPECT_LT(std::abs(g.mu - tr.mu), 4 * g.mu_sigma + std::abs(gw.mu - g0.mu))
-      << g.mu << " ± " << g.mu_sigma << "; with b at its tolerance " << gw.mu;
+      << g.mu << " ± " << g.mu_sigma << "; at stage 1's tolerance " << gw.mu;
   fs::remove_all(d);
 }
 

@@ -305,6 +305,8 @@ std::vector<std::pair<std::string, std::string>> Evaluator::fitted_scene_yaml(co
     }
     const std::string stem = fs::path(name).stem().string();
     n["name"] = "paper_fit_" + stem;
+    n["description"] = (n["description"] ? n["description"].as<std::string>() + "; " : std::string()) +
+                       "parameters fitted by pedalwave_identify";
     YAML::Emitter e;
     e.SetDoublePrecision(6);
     e << n;

@@ -148,9 +148,16 @@ int main(int argc, char** argv) {
         for (const auto& [stem, yaml] : ev.fitted_scene_yaml(r.best)) {
           const fs::path p = fs::path(write_scenes) / ("paper_fit_" + stem + ".yaml");
           std::ofstream f(p);
-          f << "# Fitted by pedalwave_identify fit (" << fs::path(params_file).filename().string() << ", "
-            << fs::path(targets_file).filename().string() << "; cost " << fmt(r.cost) << "): see "
-            << (fs::path(out) / "fit.json").string() << "\n" << yaml;
+          f << "# Parameters fitted by pedalwave_identify fit (parameters " << fs::path(params_file).filename().string()
+            << ", targets " << fs::path(targets_file).filename().string() << ", horizons " << fmt(fs_.horizon.flat, 3)
+            << "/" << fmt(fs_.horizon.friction, 3) << "/" << fmt(fs_.horizon.stair, 3) << " s, cost " << fmt(r.cost)
+            << ").\n# The best set within the stated bounds; at it (target: figure -> this model):\n";
+          for (std::size_t k = 0; k < ev.targets().list.size(); ++k) {
+            const Target& t = ev.targets().list[k];
+            f << "#   " << to_string(t.measure) << ": " << fmt(t.value, 4) << " -> " << fmt(r.measures.get(t.measure), 4)
+              << " (residual " << fmt(r.residuals[k], 3) << " tolerances)\n";
+          }
+          f << yaml;
           if (!f) throw std::runtime_error("cannot write " + p.string());
           std::cout << "wrote " << p.string() << '\n';
         }

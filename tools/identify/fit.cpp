@@ -340,6 +340,7 @@ double objective(unsigned n, const double* z, double* grad, void* data) {
       c->best = f;
       c->best_p = p;
     }
+    if (c->ev->settings().log) *c->ev->settings().log << "    cost " << fmt(f) << ", best " << fmt(c->best) << '\n';
     return f;
   } catch (const std::exception& e) {
     c->error = e.what();

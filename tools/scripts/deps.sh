@@ -19,6 +19,10 @@ pkgs+=(libwebsockets-dev nlohmann-json3-dev)
 pkgs+=(libssl-dev openssl)
 # The sros2 interop test (tests/telemetry/sros2): sros2's keystore API runs on these.
 pkgs+=(python3-cryptography python3-lxml)
+# pedalwave_identify: NLopt's derivative-free optimizers (BOBYQA, Subplex).
+pkgs+=(libnlopt-dev)
+# The README's picture of the CMake targets (tools/scripts/targets-graph.sh).
+pkgs+=(graphviz)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

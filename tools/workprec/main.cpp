@@ -26,6 +26,7 @@
 #include <sstream>
 
 #include "pedalwave/campaign/campaign.hpp"
+#include "pedalwave/campaign/cli.hpp"
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/config/shipped.hpp"
 #include "pedalwave/model/stability.hpp"
@@ -48,6 +49,7 @@ const std::vector<model::Method> kMethods = {
 
 struct Job {
   int scene = 0;        // index into the scenes
+  int variant = 0;      // fidelity variant (0 = the scene as read)
   RunSpec spec;
   bool record = true;
   int repeats = 1;      // more repeats when a run is short
@@ -55,33 +57,36 @@ struct Job {
   RunResult result;
 };
 
-// Runs jobs on `threads` threads (the campaign layer's pool), longest first, with a progress bar.
-void run_jobs(std::vector<Job*>& jobs, int threads, const std::string& label, bool quiet) {
-  std::sort(jobs.begin(), jobs.end(), [](const Job* a, const Job* b) { return a->est_cost > b->est_cost; });
-  tk::Progress::Options po;
-  if (quiet) po.style = tk::Progress::Style::silent;
-  tk::Progress progress(label, jobs.size(), po);
-  pedalwave::campaign::parallel_for(
-      jobs.size(), threads,
-      [&](std::size_t i) {
-        Job& j = *jobs[i];
-        j.result = run_once(j.spec, j.record);
-        // Short runs: repeat and take the median time (the first run's trajectory is kept).
-        if (j.result.status == RunStatus::kOk && j.repeats > 1 && j.result.cpu_s < 1.0) {
-          std::vector<double> wall{j.result.wall_s}, cpu{j.result.cpu_s};
-          for (int r = 1; r < j.repeats; ++r) {
-            const RunResult x = run_once(j.spec, false);
-            wall.push_back(x.wall_s);
-            cpu.push_back(x.cpu_s);
-          }
-          std::sort(wall.begin(), wall.end());
-          std::sort(cpu.begin(), cpu.end());
-          j.result.wall_s = wall[wall.size() / 2];
-          j.result.cpu_s = cpu[cpu.size() / 2];
-        }
-      },
-      [&] { progress.advance(); });
-  progress.finish();
+// The scenes a study runs: each file's text (what the runs' specifications carry) and the scene
+// read from it, the same way in the tool and in a Slurm array task (config::parse_scene).
+struct SceneFile {
+  std::string name, text;
+  model::Scene scene;
+};
+SceneFile read_scene_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw std::invalid_argument("cannot read scene file " + path);
+  std::ostringstream os;
+  os << f.rdbuf();
+  SceneFile sf{path, os.str(), {}};
+  sf.scene = pedalwave::config::parse_scene(sf.text, path);
+  return sf;
+}
+
+// Runs the jobs as one campaign (pedalwave::campaign: the local thread pool with a progress bar,
+// or Slurm job arrays), longest first; each run goes through its one-line specification and
+// result either way, so the results (all but the timings) are bit-identical between backends.
+void run_jobs(std::vector<Job*>& jobs, const std::vector<SceneFile>& scenes,
+              const pedalwave::campaign::Options& co, const std::string& name) {
+  std::stable_sort(jobs.begin(), jobs.end(), [](const Job* a, const Job* b) { return a->est_cost > b->est_cost; });
+  std::vector<std::string> specs;
+  specs.reserve(jobs.size());
+  for (const Job* j : jobs) {
+    const SceneFile& sf = scenes[static_cast<size_t>(j->scene)];
+    specs.push_back(encode_spec(j->spec, sf.name, sf.text, j->variant, j->record, j->repeats));
+  }
+  const std::vector<std::string> res = pedalwave::campaign::run(name, specs, run_line, co);
+  for (size_t i = 0; i < jobs.size(); ++i) jobs[i]->result = decode_result(res[i]);
 }
 
 std::string num(double v, int sig = 3) { return tk::Table::num(v, sig); }
@@ -132,13 +137,18 @@ struct Options {
   bool quick = false;
   bool fidelity = false;
   bool quiet = false;
+  pedalwave::campaign::Options campaign;
 };
 
 // ---- work-precision -----------------------------------------------------------------------------
 
 int work_precision(const Options& opt) {
+  std::vector<SceneFile> files;
   std::vector<model::Scene> scenes;
-  for (const auto& p : opt.scenes) scenes.push_back(pedalwave::config::load_scene(p));
+  for (const auto& p : opt.scenes) {
+    files.push_back(read_scene_file(p));
+    scenes.push_back(files.back().scene);
+  }
   const int S = static_cast<int>(scenes.size());
   auto base = [&](int s) {
     RunSpec r;
@@ -162,7 +172,7 @@ int work_precision(const Options& opt) {
       j.est_cost = estimate(j.spec) * 3;
       ptrs.push_back(&j);
     }
-  run_jobs(ptrs, opt.jobs, "references", opt.quiet);
+  run_jobs(ptrs, files, opt.campaign, "references");
   for (const Job& j : refs)
     if (j.result.status != RunStatus::kOk) {
       std::cerr << "reference for " << scenes[static_cast<size_t>(j.scene)].name << " failed: " << j.result.why
@@ -208,7 +218,7 @@ int work_precision(const Options& opt) {
     j.est_cost = estimate(j.spec);
     ptrs.push_back(&j);
   }
-  run_jobs(ptrs, opt.jobs, "work-precision runs", opt.quiet);
+  run_jobs(ptrs, files, opt.campaign, "work-precision");
 
   // Results.
   fs::create_directories(opt.out);
@@ -357,21 +367,13 @@ int work_precision(const Options& opt) {
 // ---- fidelity -----------------------------------------------------------------------------------
 
 int fidelity(const Options& opt) {
-  struct Variant {
-    std::string name;
-    std::function<void(model::Scene&)> apply;
-  };
-  const std::vector<Variant> variants = {
-      {"flexible, regularized v_s = 1e-3 (shipped)", [](model::Scene&) {}},
-      {"rigid joints (exact limit)", [](model::Scene& s) { s.robot.joints = model::JointModel::kRigid; }},
-      {"Coulomb (exact sign)", [](model::Scene& s) { s.ground.law = model::FrictionLaw::kCoulomb; }},
-      {"regularized v_s = 1e-4", [](model::Scene& s) { s.ground.v_s = 1e-4; }},
-      {"regularized v_s = 1e-2", [](model::Scene& s) { s.ground.v_s = 1e-2; }},
-      {"tanh v_s = 1e-3", [](model::Scene& s) { s.ground.law = model::FrictionLaw::kTanh; }},
-      {"stick-slip k_t = 2000 N/m", [](model::Scene& s) { s.ground.law = model::FrictionLaw::kStickSlip; }},
-  };
+  const std::vector<Variant>& variants = fidelity_variants();
+  std::vector<SceneFile> files;
   std::vector<model::Scene> scenes;
-  for (const auto& p : opt.scenes) scenes.push_back(pedalwave::config::load_scene(p));
+  for (const auto& p : opt.scenes) {
+    files.push_back(read_scene_file(p));
+    scenes.push_back(files.back().scene);
+  }
   // dopri45 cannot resolve an exact sign switch: give it up when its step falls below 1e-9 s or it
   // spends more than 100× the implicit run's evaluations.
   model::IntegratorOptions dp = dopri(1e-6);
@@ -383,7 +385,8 @@ int fidelity(const Options& opt) {
     for (size_t v = 0; v < variants.size(); ++v)
       for (const auto& in : integs) {
         Job j;
-        j.scene = static_cast<int>(s * 100 + v);
+        j.scene = static_cast<int>(s);
+        j.variant = static_cast<int>(v);
         j.spec.scene = scenes[s];
         variants[v].apply(j.spec.scene);
         j.spec.closed_loop = true;
@@ -395,7 +398,7 @@ int fidelity(const Options& opt) {
       }
   std::vector<Job*> ptrs;
   for (Job& j : jobs) ptrs.push_back(&j);
-  run_jobs(ptrs, opt.jobs, "fidelity runs", opt.quiet);
+  run_jobs(ptrs, files, opt.campaign, "fidelity");
 
   fs::create_directories(opt.out);
   tk::CsvWriter csv(fs::path(opt.out) / "fidelity.csv",
@@ -441,6 +444,8 @@ int fidelity(const Options& opt) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (pedalwave::campaign::cli::is_worker(argc, argv))
+    return pedalwave::campaign::worker_main(argc - 1, argv + 1, run_line, "pedalwave_workprec");
   CLI::App app{"pedalwave_workprec: what accuracy costs in time — integrators against a tight "
                "reference on the shipped scenes (or, with --fidelity, model variants)"};
   Options opt;
@@ -455,6 +460,10 @@ int main(int argc, char** argv) {
   app.add_flag("--quick", opt.quick, "a few points per method (smoke test)");
   app.add_flag("--fidelity", opt.fidelity, "model-fidelity study instead of the work-precision study");
   app.add_flag("--quiet", opt.quiet, "no progress bar");
+  // The runs as a campaign: --backend local|slurm and the Slurm options (default campaign folder:
+  // <--out>/campaign).
+  pedalwave::campaign::cli::CliOptions camp;
+  pedalwave::campaign::cli::add_options(&app, camp, "");
   if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_workprec")) return *rc;
   if (opt.scenes.empty()) {
     if (opt.fidelity)
@@ -464,6 +473,8 @@ int main(int argc, char** argv) {
         opt.scenes.push_back(dir + "/" + n + ".yaml");
   }
   try {
+    opt.campaign = pedalwave::campaign::cli::options(camp, opt.jobs, !opt.quiet);
+    if (opt.campaign.slurm.dir.empty()) opt.campaign.slurm.dir = fs::path(opt.out) / "campaign";
     return opt.fidelity ? fidelity(opt) : work_precision(opt);
   } catch (const std::exception& e) {
     std::cerr << "pedalwave_workprec: " << e.what() << '\n';

@@ -5,8 +5,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <memory>
+#include <stdexcept>
 
+#include "pedalwave/campaign/campaign.hpp"
+#include "pedalwave/config/scene.hpp"
 #include "pedalwave/model/kinematics.hpp"
 #include "pedalwave/model/plant.hpp"
 #include "pedalwave/simloop/closed_loop.hpp"
@@ -106,6 +110,151 @@ Errors compare(const Trajectory& run, const Trajectory& ref) {
   if (n > 0)
     e.com_final = std::hypot(run.com_x[n - 1] - ref.com_x[n - 1], run.com_z[n - 1] - ref.com_z[n - 1]);
   return e;
+}
+
+const std::vector<Variant>& fidelity_variants() {
+  static const std::vector<Variant> v = {
+      {"flexible, regularized v_s = 1e-3 (shipped)", [](model::Scene&) {}},
+      {"rigid joints (exact limit)", [](model::Scene& s) { s.robot.joints = model::JointModel::kRigid; }},
+      {"Coulomb (exact sign)", [](model::Scene& s) { s.ground.law = model::FrictionLaw::kCoulomb; }},
+      {"regularized v_s = 1e-4", [](model::Scene& s) { s.ground.v_s = 1e-4; }},
+      {"regularized v_s = 1e-2", [](model::Scene& s) { s.ground.v_s = 1e-2; }},
+      {"tanh v_s = 1e-3", [](model::Scene& s) { s.ground.law = model::FrictionLaw::kTanh; }},
+      {"stick-slip k_t = 2000 N/m", [](model::Scene& s) { s.ground.law = model::FrictionLaw::kStickSlip; }},
+  };
+  return v;
+}
+
+namespace {
+
+std::string hex_list(const std::vector<double>& v) {
+  std::string out;
+  out.reserve(v.size() * 24);
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (i) out += ',';
+    out += campaign::hex(v[i]);
+  }
+  return out;
+}
+
+std::vector<double> parse_list(const std::string& text, const std::string& key) {
+  std::vector<double> out;
+  if (text.empty()) return out;
+  const char* p = text.c_str();
+  while (true) {
+    char* end = nullptr;
+    const double v = std::strtod(p, &end);
+    if (end == p) throw std::invalid_argument("workprec run result: " + key + " holds a field that is not a number");
+    out.push_back(v);
+    if (*end == '\0') break;
+    if (*end != ',') throw std::invalid_argument("workprec run result: " + key + ": expected numbers separated by ','");
+    p = end + 1;
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string encode_spec(const RunSpec& spec, const std::string& scene_name, const std::string& scene_text,
+                        int variant, bool record, int repeats) {
+  campaign::Record r;
+  r.put_text("kind", "workprec.run")
+      .put_text("scene", scene_name)
+      .put_text("scene_yaml", scene_text)
+      .put_int("variant", variant)
+      .put_int("closed_loop", spec.closed_loop ? 1 : 0)
+      .put("rate_hz", spec.rate_hz)
+      .put("duration", spec.duration)
+      .put_text("method", model::to_string(spec.integ.method))
+      .put("h", spec.integ.h)
+      .put("rtol", spec.integ.rtol)
+      .put("atol", spec.integ.atol)
+      .put("h_min", spec.integ.h_min)
+      .put("h_max", spec.integ.h_max)
+      .put_int("max_evaluations", static_cast<long long>(spec.max_evaluations))
+      .put_int("record", record ? 1 : 0)
+      .put_int("repeats", repeats);
+  return r.line();
+}
+
+std::string run_line(const std::string& line) {
+  const campaign::Record r = campaign::Record::parse(line, "pedalwave_workprec run specification");
+  if (r.text("kind") != "workprec.run")
+    throw std::invalid_argument("run specification: kind = " + r.text("kind") + ": expected workprec.run");
+  RunSpec s;
+  s.scene = config::parse_scene(r.text("scene_yaml"), r.text("scene"));
+  const long long v = r.integer("variant");
+  if (v < 0 || v >= static_cast<long long>(fidelity_variants().size()))
+    throw std::invalid_argument("run specification: variant = " + std::to_string(v) + ": expected 0 … " +
+                                std::to_string(fidelity_variants().size() - 1));
+  fidelity_variants()[static_cast<std::size_t>(v)].apply(s.scene);
+  s.closed_loop = r.integer("closed_loop") != 0;
+  s.rate_hz = r.number("rate_hz");
+  s.duration = r.number("duration");
+  s.integ.method = model::parse_method(r.text("method"));
+  s.integ.h = r.number("h");
+  s.integ.rtol = r.number("rtol");
+  s.integ.atol = r.number("atol");
+  s.integ.h_min = r.number("h_min");
+  s.integ.h_max = r.number("h_max");
+  s.max_evaluations = static_cast<std::uint64_t>(r.integer("max_evaluations"));
+  const bool record = r.integer("record") != 0;
+  const long long repeats = r.integer("repeats");
+  RunResult res = run_once(s, record);
+  // Short runs: repeat and take the median time (the first run's results are kept).
+  if (res.status == RunStatus::kOk && repeats > 1 && res.cpu_s < 1.0) {
+    std::vector<double> wall{res.wall_s}, cpu{res.cpu_s};
+    for (long long k = 1; k < repeats; ++k) {
+      const RunResult x = run_once(s, false);
+      wall.push_back(x.wall_s);
+      cpu.push_back(x.cpu_s);
+    }
+    std::sort(wall.begin(), wall.end());
+    std::sort(cpu.begin(), cpu.end());
+    res.wall_s = wall[wall.size() / 2];
+    res.cpu_s = cpu[cpu.size() / 2];
+  }
+  return encode_result(res);
+}
+
+std::string encode_result(const RunResult& x) {
+  campaign::Record r;
+  r.put_int("status", static_cast<long long>(x.status))
+      .put_text("why", x.why)
+      .put("t_fail", x.t_fail)
+      .put("wall_s", x.wall_s)
+      .put("cpu_s", x.cpu_s)
+      .put_int("evaluations", static_cast<long long>(x.evaluations))
+      .put_int("steps", static_cast<long long>(x.steps))
+      .put_int("rejected", static_cast<long long>(x.rejected))
+      .put_int("joints", x.traj.joints)
+      .put_text("t", hex_list(x.traj.t))
+      .put_text("com_x", hex_list(x.traj.com_x))
+      .put_text("com_z", hex_list(x.traj.com_z))
+      .put_text("alpha", hex_list(x.traj.alpha));
+  return r.line();
+}
+
+RunResult decode_result(const std::string& line) {
+  const campaign::Record r = campaign::Record::parse(line, "pedalwave_workprec run result");
+  RunResult x;
+  const long long st = r.integer("status");
+  if (st < 0 || st > static_cast<long long>(RunStatus::kFailed))
+    throw std::invalid_argument("run result: status = " + std::to_string(st) + ": expected 0 … 2");
+  x.status = static_cast<RunStatus>(st);
+  x.why = r.text("why");
+  x.t_fail = r.number("t_fail");
+  x.wall_s = r.number("wall_s");
+  x.cpu_s = r.number("cpu_s");
+  x.evaluations = static_cast<std::uint64_t>(r.integer("evaluations"));
+  x.steps = static_cast<std::uint64_t>(r.integer("steps"));
+  x.rejected = static_cast<std::uint64_t>(r.integer("rejected"));
+  x.traj.joints = static_cast<int>(r.integer("joints"));
+  x.traj.t = parse_list(r.text("t"), "t");
+  x.traj.com_x = parse_list(r.text("com_x"), "com_x");
+  x.traj.com_z = parse_list(r.text("com_z"), "com_z");
+  x.traj.alpha = parse_list(r.text("alpha"), "alpha");
+  return x;
 }
 
 }  // namespace pedalwave::workprec

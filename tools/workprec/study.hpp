@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -58,5 +59,25 @@ struct Errors {
   double alpha_max = 0.0;  // max over samples and joints of |α − α_ref| [rad]
 };
 Errors compare(const Trajectory& run, const Trajectory& ref);
+
+// The fidelity study's model variants (applied to a scene by index; 0 = the scene as shipped).
+struct Variant {
+  std::string name;
+  std::function<void(model::Scene&)> apply;
+};
+const std::vector<Variant>& fidelity_variants();
+
+// ---- a run as one line of text (a campaign's specification and result; pedalwave::campaign) ------
+// The specification: the scene's YAML text (what spec.scene was read from, by config::parse_scene;
+// only its fidelity variant and the fields of RunSpec differ), the variant index, every field of
+// RunSpec, whether to record the trajectory and the timing repeats; doubles exact (hex floats).
+std::string encode_spec(const RunSpec& spec, const std::string& scene_name, const std::string& scene_text,
+                        int variant, bool record, int repeats);
+// The runner: run_once (repeated for timing: runs under 1 s CPU `repeats` times, the median wall
+// and CPU time, the first run's results) → encode_result. Everything but wall_s and cpu_s depends
+// only on the specification (bit-identical on any backend).
+std::string run_line(const std::string& spec);
+std::string encode_result(const RunResult& r);
+RunResult decode_result(const std::string& line);
 
 }  // namespace pedalwave::workprec

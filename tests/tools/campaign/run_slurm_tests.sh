@@ -11,13 +11,20 @@
 #      every run exactly once), results the local ones;
 #   4. sbatch refusing the job (a bogus --sbatch-opt) is one clear error, exit ≠ 0;
 #   5. (with FAULTBENCH_EXE) pedalwave_faultbench's injection trials through sbatch print the same
-#      table and per-trial lines as the local backend.
-# Usage: run_slurm_tests.sh PAPER_EXE WORK_DIR [FAULTBENCH_EXE]. Exit 0 pass, 1 fail, 77 SKIPPED (no slurm-wlm /
+#      table and per-trial lines as the local backend;
+#   6. (with WORKPREC_EXE) pedalwave_workprec's work-precision and fidelity runs through sbatch
+#      write the same CSV files (all but the timing columns) as the local backend;
+#   7. (with IDENTIFY_EXE) pedalwave_identify fit's evaluations through sbatch give the same
+#      fit.json as the local backend (all but the work counters).
+# Usage: run_slurm_tests.sh PAPER_EXE WORK_DIR [FAULTBENCH_EXE [WORKPREC_EXE [IDENTIFY_EXE]]] (an
+# empty argument skips that tool). Exit 0 pass, 1 fail, 77 SKIPPED (no slurm-wlm /
 # munge packages, not root, or the daemons do not come up).
 set -uo pipefail
 PAPER=$1
 W=$2
 FAULTBENCH=${3:-}
+WORKPREC=${4:-}
+IDENTIFY=${5:-}
 HERE=$(cd "$(dirname "$0")" && pwd)
 source "$HERE/cluster.sh"
 
@@ -149,6 +156,49 @@ if [ -n "$FAULTBENCH" ]; then
     pass "faultbench trials through sbatch = local (table and 2 trial lines)"
   else
     fail "faultbench differs: $(diff "$W/fb_local.md" "$W/fb_slurm.md" | head -3 | tr '\n' ';')"
+  fi
+fi
+
+# ---- 6. workprec's runs ------------------------------------------------------------------------------
+if [ -n "$WORKPREC" ]; then
+  SC=$(cd "$HERE/../../../config/scenes" && pwd)
+  WP=("$SC/free_fall.yaml" "$SC/flat_high_friction.yaml" --quick --duration 0.3 --repeats 1 --quiet)
+  # work_precision.csv / fidelity.csv without wall_s and cpu_s (columns 6-7): measurements, not results.
+  wp_results() { cut -d, -f1-5,8- "$1"; }
+  "$WORKPREC" "${WP[@]}" --jobs 2 --out "$W/wp_local" >"$W/wp_local.log" 2>&1 || fail "local workprec: exit $?"
+  "$WORKPREC" "${WP[@]}" --backend slurm --chunk 4 --poll 0.2 --out "$W/wp_slurm" >"$W/wp_slurm.log" 2>&1 ||
+    { fail "slurm workprec: exit $?"; tail -3 "$W/wp_slurm.log"; }
+  n=$(($(grep -vc '^#' "$W/wp_local/work_precision.csv") - 1))
+  if [ "$n" -gt 10 ] && cmp -s <(wp_results "$W/wp_local/work_precision.csv") <(wp_results "$W/wp_slurm/work_precision.csv") &&
+     [ -s "$W/wp_slurm/campaign/work-precision/job.sh" ]; then
+    pass "workprec through sbatch = local ($n runs, work_precision.csv but the timings)"
+  else
+    fail "workprec differs: $(diff <(wp_results "$W/wp_local/work_precision.csv") <(wp_results "$W/wp_slurm/work_precision.csv") | head -3 | tr '\n' ';')"
+  fi
+  FID=("$SC/flat_high_friction.yaml" --fidelity --duration 0.2 --quiet)
+  "$WORKPREC" "${FID[@]}" --jobs 2 --out "$W/fid_local" >/dev/null 2>&1 || fail "local fidelity: exit $?"
+  "$WORKPREC" "${FID[@]}" --backend slurm --chunk 7 --poll 0.2 --out "$W/fid_slurm" >"$W/fid_slurm.log" 2>&1 ||
+    { fail "slurm fidelity: exit $?"; tail -3 "$W/fid_slurm.log"; }
+  fid_results() { cut -d, -f1-5,8-9 "$1"; }  # all but cpu_s, wall_s
+  if cmp -s <(fid_results "$W/fid_local/fidelity.csv") <(fid_results "$W/fid_slurm/fidelity.csv"); then
+    pass "workprec --fidelity through sbatch = local ($(($(wc -l <"$W/fid_local/fidelity.csv") - 1)) runs)"
+  else
+    fail "fidelity differs: $(diff <(fid_results "$W/fid_local/fidelity.csv") <(fid_results "$W/fid_slurm/fidelity.csv") | head -3 | tr '\n' ';')"
+  fi
+fi
+
+# ---- 7. the identification's evaluations --------------------------------------------------------------
+if [ -n "$IDENTIFY" ]; then
+  ID=(fit --smoke --starts 2 --max-evals 2 --no-cache --quiet)
+  "$IDENTIFY" "${ID[@]}" --jobs 2 --out "$W/id_local" >"$W/id_local.log" 2>&1 || fail "local identify: exit $?"
+  "$IDENTIFY" "${ID[@]}" --backend slurm --chunk 5 --poll 0.2 --out "$W/id_slurm" >"$W/id_slurm.log" 2>&1 ||
+    { fail "slurm identify: exit $?"; tail -3 "$W/id_slurm.log"; }
+  id_results() { grep -v -E '"(evaluations|simulations|cache_hits)"' "$1/fit.json"; }
+  if [ -s "$W/id_local/fit.json" ] && cmp -s <(id_results "$W/id_local") <(id_results "$W/id_slurm") &&
+     ls "$W/id_slurm/campaign" | grep -q '^eval-'; then
+    pass "identify fit through sbatch = local (fit.json, $(ls "$W/id_slurm/campaign" | wc -l) campaigns)"
+  else
+    fail "identify differs: $(diff <(id_results "$W/id_local") <(id_results "$W/id_slurm") | head -3 | tr '\n' ';')"
   fi
 fi
 

@@ -36,7 +36,7 @@
 #include "pedalwave/drivers/bus_budget.hpp"
 #include "pedalwave/drivers/canopen.hpp"
 #include "pedalwave/drivers/cia402.hpp"
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/socketcan_driver.hpp"
 
 namespace pedalwave::drivers {

@@ -1,0 +1,333 @@
+// pedalwave_identify: its files, the fit against targets the simulator made, and the recording fit
+// recovering known parameters from a simulated recording with sensor noise.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "fit.hpp"
+#include "params.hpp"
+#include "pedalwave/config/scene.hpp"
+#include "pedalwave/config/shipped.hpp"
+#include "pedalwave/config/yaml_reader.hpp"
+#include "pedalwave/simloop/closed_loop.hpp"
+#include "pedalwave/toolkit/json.hpp"
+#include "recording.hpp"
+
+namespace fs = std::filesystem;
+using namespace pedalwave;
+using namespace pedalwave::identify;
+
+namespace {
+
+fs::path temp_dir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("pw_identify_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+fs::path write(const fs::path& p, const std::string& text) {
+  std::ofstream(p) << text;
+  return p;
+}
+
+std::string scenes_dir() { return config::shipped_dir() + "/scenes"; }
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+// ---- files ----------------------------------------------------------------------------------------
+TEST(IdentifyFiles, ShippedFilesLoadAndEveryRowIsUnique) {
+  const auto ps = load_params(config::shipped_dir() + "/identify/paper_params.yaml");
+  EXPECT_GE(ps.size(), 6u);
+  for (const FitParam& p : ps) EXPECT_FALSE(p.reason.empty()) << p.def->name;
+  const Targets t = load_targets(config::shipped_dir() + "/identify/paper_targets.yaml");
+  EXPECT_EQ(t.list.size(), 5u);
+  EXPECT_DOUBLE_EQ(t.k_c, 10.1);
+  std::set<std::string> names;
+  for (const ParamDef& d : parameter_table()) EXPECT_TRUE(names.insert(d.name).second) << d.name;
+}
+
+TEST(IdentifyFiles, BadInputNamesFileKeyValueAndExpectation) {
+  const fs::path d = temp_dir("files");
+  const auto p1 = write(d / "a.yaml", "parameters:\n  - {name: Kx, min: 1, max: 2, reason: r}\n");
+  const std::string e1 = error_of([&] { (void)load_params(p1.string()); });
+  EXPECT_NE(e1.find("a.yaml:2"), std::string::npos) << e1;
+  EXPECT_NE(e1.find("Kx"), std::string::npos) << e1;
+  EXPECT_NE(e1.find("I_r"), std::string::npos) << e1;  // lists the known names
+  const auto p2 = write(d / "b.yaml", "parameters:\n  - {name: K, min: 3, max: 2, reason: r}\n");
+  EXPECT_NE(error_of([&] { (void)load_params(p2.string()); }).find("above min"), std::string::npos);
+  const auto p3 = write(d / "c.yaml", "parameters:\n  - {name: K, min: 1, max: 2}\n");
+  EXPECT_NE(error_of([&] { (void)load_params(p3.string()); }).find("reason"), std::string::npos);
+  const auto p4 = write(d / "d.yaml", "parameters:\n  - {name: friction_at, choices: [somewhere], reason: r}\n");
+  EXPECT_NE(error_of([&] { (void)load_params(p4.string()); }).find("link_coms"), std::string::npos);
+  const auto p5 = write(d / "e.yaml", "targets:\n  - {measure: flat_speed, value: 0.02}\n");
+  EXPECT_NE(error_of([&] { (void)load_targets(p5.string()); }).find("tolerance"), std::string::npos);
+  const auto p6 = write(d / "f.yaml", "targets:\n  - {measure: speed, value: 0.02, tolerance: 1}\n");
+  EXPECT_NE(error_of([&] { (void)load_targets(p6.string()); }).find("flat_speed"), std::string::npos);
+  fs::remove_all(d);
+}
+
+// ---- the fit ----------------------------------------------------------------------------------------
+namespace {
+FitSettings short_settings(int jobs) {
+  FitSettings s;
+  s.scenes_dir = scenes_dir();
+  s.horizon = {4.0, 8.0, 4.0};
+  s.campaign.jobs = jobs;
+  s.progress = false;
+  return s;
+}
+}  // namespace
+
+// The measures of a parameter set do not depend on the thread count or the batch they are in.
+TEST(IdentifyFit, EvaluationsAreDeterministicAcrossThreadsAndBatches) {
+  const fs::path d = temp_dir("det");
+  const auto pf = write(d / "p.yaml", "parameters:\n  - {name: K, min: 1, max: 10, reason: test}\n");
+  const auto tf = write(d / "t.yaml", "targets:\n  - {measure: friction_gain, value: 0.1, tolerance: 0.01}\n");
+  Evaluator a(load_params(pf.string()), load_targets(tf.string()), short_settings(1));
+  Evaluator b(load_params(pf.string()), load_targets(tf.string()), short_settings(2));
+  const auto ma = a.evaluate({{2.0}, {5.0}}, "a");
+  const auto mb = b.evaluate({{5.0}}, "b");
+  const auto mb2 = b.evaluate({{2.0}, {5.0}}, "b2");  // 2.0 new, 5.0 from the cache
+  EXPECT_EQ(b.cache_hits(), 2u);  // K = 5's two runs (flat 0.82 and 0.40)
+  EXPECT_EQ(std::memcmp(&ma[1].v_flat_high, &mb[0].v_flat_high, sizeof(double)), 0);
+  EXPECT_EQ(std::memcmp(&ma[0].v_flat_low, &mb2[0].v_flat_low, sizeof(double)), 0);
+  EXPECT_TRUE(std::isfinite(ma[0].v_flat_high));
+  EXPECT_NE(ma[0].v_flat_high, ma[1].v_flat_high);  // K moves the speed
+  fs::remove_all(d);
+}
+
+// A target made by the simulator at ground k = 700 N/m (flat speed, 4 s runs): the fit (started at
+// the shipped 350 N/m, one parameter, LN_SBPLX) must find it again. The tolerance, 0.01 cm/s, is
+// what the simulation resolves as a smooth function of k (the speed wiggles by ~0.005 cm/s between
+// neighbouring k; the friction gain of 4 s runs wiggles by ±0.5 points and is no test target). The
+// fit must reach the target within it, and k within 3 of the σ it reports (the change of k that
+// moves the speed by one tolerance) plus the optimizer's xtol; that σ must be small against the
+// start's error for the test to mean something.
+TEST(IdentifyFit, RecoversAParameterFromTargetsTheSimulatorMade) {
+  const fs::path d = temp_dir("recover");
+  const auto pf = write(d / "p.yaml", "parameters:\n  - {name: ground_k, min: 100, max: 5000, reason: test}\n");
+  const auto probe_t = write(d / "probe.yaml",
+                             "targets:\n  - {measure: flat_speed, value: 0, tolerance: 1}\n"
+                             "  - {measure: friction_gain, value: 0, tolerance: 1}\n");
+  Evaluator probe(load_params(pf.string()), load_targets(probe_t.string()), short_settings(2));
+  const Measures truth = probe.evaluate({{700.0}}, "truth").front();
+  std::ostringstream tt;
+  tt.precision(17);
+  tt << "targets:\n  - {measure: flat_speed, value: " << truth.get(Measure::flat_speed) << ", tolerance: 1.0e-4}\n";
+  const auto tf = write(d / "t.yaml", tt.str());
+  FitSettings s = short_settings(2);
+  s.starts = 4;
+  s.max_evals = 60;
+  s.xtol = 1e-4;
+  Evaluator ev(load_params(pf.string()), load_targets(tf.string()), s);
+  const FitResult r = fit(ev);
+  ASSERT_EQ(r.params.size(), 1u);
+  for (double res : r.residuals)
+    EXPECT_LT(std::abs(res), 1.0) << r.nlopt_status << ", " << r.evaluations << " evaluations";
+  const ParamReport& k = r.params[0];
+  ASSERT_TRUE(std::isfinite(k.sigma_hi));
+  const double sig = std::log(k.sigma_hi / k.value), x = s.xtol * std::log(5000.0 / 100.0);
+  EXPECT_LT(std::abs(std::log(k.value / 700.0)), x + 3 * sig) << "k = " << k.value << " (" << k.sigma_lo << " … " << k.sigma_hi << ")";
+  EXPECT_LT(3 * sig, 0.25 * std::log(700.0 / 350.0));
+  EXPECT_EQ(r.singular_values.size(), 1u);
+  EXPECT_EQ(k.sensitivity.size(), 1u);
+  // The fitted scenes carry the value and load.
+  for (const auto& [stem, yaml] : ev.fitted_scene_yaml(r.best)) {
+    const model::Scene sc = config::parse_scene(yaml, stem);
+    EXPECT_DOUBLE_EQ(sc.ground.k, r.best[0]) << stem;
+  }
+  fs::remove_all(d);
+}
+
+// ---- a robot's own data -------------------------------------------------------------------------------
+namespace {
+
+constexpr double kPlantStep = 5e-5;  // [s]
+constexpr double kKp = 30;           // the controller's K_p [N·m/rad] (MotorFitOptions' default)
+
+struct Truth {
+  std::vector<double> K{2.5, 3.5, 3.0, 4.0, 2.2};
+  double I_r = 8e-8, b = 0.01, mu = 0.6;
+};
+
+// A closed-loop walk of the plant with the true parameters, every control period; sensor noise
+// (σ_β on the motor encoder, σ_β̇ on its rate, σ_d on the deflection sensor, α = β − deflection)
+// added to the recorded signals. The commands u are the controller's (exact: they are what the
+// robot sent). Returns the scene text the fit re-simulates (the truth's parameters NOT in it).
+Recording simulate_recording(const Truth& tr, double duration, double sb, double sbd, double sd, bool rates,
+                             std::string& scene_yaml) {
+  std::ifstream f(scenes_dir() + "/flat_high_friction.yaml");
+  std::ostringstream os;
+  os << f.rdbuf();
+  scene_yaml = os.str();
+  // A fine plant step: the robot's physics is continuous (the module's PD runs far faster than the
+  // control rate); the plant's implicit step h_s adds a first-order error K_p h_s / 2 to the
+  // motor friction it seems to have (the PD's integral over a step taken at its end).
+  const std::string from = "integrator: {method: implicit_velocity, h: 5.0e-4}";
+  const auto at = scene_yaml.find(from);
+  if (at == std::string::npos) throw std::runtime_error("flat_high_friction.yaml: integrator line not found");
+  scene_yaml.replace(at, from.size(), "integrator: {method: implicit_velocity, h: " + std::to_string(kPlantStep) + "}");
+  model::Scene sc = config::parse_scene(scene_yaml, "flat_high_friction");
+  sc.robot.K = tr.K;
+  sc.robot.I_r = tr.I_r;
+  sc.joint_friction_on = true;
+  sc.joint_friction.motor_viscous = tr.b;
+  sc.ground.mu = tr.mu;
+  sc.duration = duration;
+  simloop::ClosedLoop loop(sc, simloop::Options{.rate_hz = 1000.0});
+  const model::Model& m = loop.sim().plant().model();
+  const int J = m.joints();
+  Recording r;
+  r.joints = J;
+  r.source = "simulated";
+  r.alpha.resize(static_cast<std::size_t>(J));
+  r.beta = r.beta_dot = r.u = r.alpha;
+  if (rates) r.alpha_dot = r.alpha;
+  std::mt19937_64 rng(20261206);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const auto steps = static_cast<long>(std::llround(duration * 1000.0));
+  for (long k = 0; k <= steps; ++k) {
+    // The state at t_k, then the command the controller computes from it (applied over period k).
+    const Eigen::VectorXd q = loop.sim().q(), v = loop.sim().v();
+    const double t = loop.sim().t();
+    if (k < steps) {
+      if (loop.step() != model::StepStatus::kOk) throw std::runtime_error("simulated walk failed");
+    }
+    r.t.push_back(t);
+    for (int j = 0; j < J; ++j) {
+      const auto js = static_cast<std::size_t>(j);
+      const double beta = q(m.i_beta(j)) + sb * n01(rng);
+      const double defl = q(m.i_beta(j)) - q(m.i_alpha(j)) + sd * n01(rng);
+      r.beta[js].push_back(beta);
+      r.alpha[js].push_back(beta - defl);
+      r.beta_dot[js].push_back(v(m.i_beta(j)) + sbd * n01(rng));
+      r.u[js].push_back(k < steps ? loop.control().u[js] : r.u[js].back());
+      if (rates) r.alpha_dot[js].push_back(v(m.i_alpha(j)));
+    }
+    if (rates) r.theta_N_dot.push_back(v(m.i_theta_N()));
+  }
+  return r;
+}
+
+}  // namespace
+
+// Without noise the integrated motor rows hold to the integration's accuracy: K and I_r come back to
+// 0.5 % (the trapezoid over 1 ms of β − α and of the module PD's change are O(h²)); b to the plant
+// step's first-order error K_p h_s / 2 (see simulate_recording).
+TEST(IdentifyData, NoiseFreeRecordingGivesTheParametersBack) {
+  Truth tr;
+  std::string yaml;
+  const Recording r = simulate_recording(tr, 4.0, 0, 0, 0, true, yaml);
+  const MotorFit f = fit_motor(r, MotorFitOptions{});
+  ASSERT_TRUE(f.theta_term);
+  for (std::size_t j = 0; j < tr.K.size(); ++j) EXPECT_NEAR(f.K[j], tr.K[j], 5e-3 * tr.K[j]) << "joint " << j + 1;
+  EXPECT_NEAR(f.I_r, tr.I_r, 5e-3 * tr.I_r);
+  EXPECT_NEAR(f.b, tr.b, 5e-3 * tr.b + kKp * kPlantStep / 2);
+}
+
+// With sensor noise: every estimate within 4 of its standard errors (computed from the windows'
+// residuals, i.e. from the noise), and the standard errors small enough that the test means
+// something (K and I_r to 3 %). The recording goes through the CSV file the tool reads.
+TEST(IdentifyData, RecoversKFrictionIrAndGroundMuFromANoisyRecording) {
+  Truth tr;
+  std::string yaml;
+  // A motor-side encoder reflected through n = 255 (4096 counts: 6e-6 rad a count; σ = 1e-5 rad),
+  // its rate by differences at 1 kHz (σ ≈ √2 σ_β / h, rounded up to 5e-3 rad/s), a deflection
+  // sensor of 12 bits (1.5e-3 rad a count; σ = 1e-3 rad).
+  const double sb = 1e-5, sbd = 5e-3, sd = 1e-3;  // [rad], [rad/s], [rad]
+  const Recording sim = simulate_recording(tr, 6.0, sb, sbd, sd, false, yaml);
+  const fs::path d = temp_dir("data");
+  write_recording_csv(sim, d / "walk.csv");
+  const Recording r = read_recording_csv(d / "walk.csv");
+  ASSERT_EQ(r.joints, 5);
+  ASSERT_EQ(r.t.size(), sim.t.size());
+  const MotorFit f = fit_motor(r, MotorFitOptions{});
+  EXPECT_FALSE(f.theta_term);
+  for (std::size_t j = 0; j < tr.K.size(); ++j) {
+    EXPECT_LT(std::abs(f.K[j] - tr.K[j]), 4 * f.K_se[j]) << "joint " << j + 1 << ": " << f.K[j] << " ± " << f.K_se[j];
+    EXPECT_LT(f.K_se[j], 0.03 * tr.K[j]);
+  }
+  // Without θ̇ the 1/n term is missing: I_r's tolerance adds that bias bound, |θ̈| / (n |β̈|) ≲ 2/n.
+  EXPECT_LT(std::abs(f.I_r - tr.I_r), 4 * f.I_r_se + 2.0 / 255 * tr.I_r) << f.I_r << " ± " << f.I_r_se;
+  EXPECT_LT(f.I_r_se, 0.03 * tr.I_r);
+  EXPECT_LT(std::abs(f.b - tr.b), 4 * f.b_se + kKp * kPlantStep / 2) << f.b << " ± " << f.b_se;
+  EXPECT_LT(f.b_se, 0.5 * tr.b);
+
+  // Stage 2 on its own (the truth's motor parameters): μ within 4 σ_μ, σ_μ from the residuals
+  // (the noise), and the residual is the noise: α and β − α carry σ_d and √(σ_β² + σ_d²).
+  GroundFitOptions go;
+  go.campaign.jobs = 2;
+  go.campaign.progress = false;
+  MotorFit exact = f;
+  exact.K = tr.K;
+  exact.I_r = tr.I_r;
+  exact.b = tr.b;
+  const GroundFit g0 = fit_ground_mu(d / "walk.csv", yaml, exact, go);
+  ASSERT_TRUE(std::isfinite(g0.mu_sigma));
+  EXPECT_LT(std::abs(g0.mu - tr.mu), 4 * g0.mu_sigma) << g0.mu << " ± " << g0.mu_sigma;
+  EXPECT_LT(g0.mu_sigma, 0.1 * tr.mu);
+  const double expect = std::sqrt(0.5 * (sd * sd + sb * sb + sd * sd));
+  EXPECT_LT(g0.rms, 1.5 * expect) << "model mismatch beyond the noise";
+  // End to end (stage 1's estimates): stage 1's tolerance carried through stage 2. The motor
+  // parameters at the corner of stage 1's tolerance box on the side the estimates lie (K_j and I_r
+  // at 4 σ, b at 4 σ + K_p h_s / 2, I_r + its 2/n bias): μ's shift there bounds the shift the
+  // estimates cause (μ is smooth and monotone in them over so small a box).
+  MotorFit worst = exact;
+  auto corner = [](double truth, double est, double tol) { return truth + std::copysign(tol, est - truth); };
+  for (std::size_t j = 0; j < tr.K.size(); ++j) worst.K[j] = corner(tr.K[j], f.K[j], 4 * f.K_se[j]);
+  worst.b = corner(tr.b, f.b, 4 * f.b_se + kKp * kPlantStep / 2);
+  worst.I_r = corner(tr.I_r, f.I_r, 4 * f.I_r_se + 2.0 / 255 * tr.I_r);
+  const GroundFit gw = fit_ground_mu(d / "walk.csv", yaml, worst, go);
+  const GroundFit g = fit_ground_mu(d / "walk.csv", yaml, f, go);
+  EXPECT_LT(std::abs(g.mu - tr.mu), 4 * g.mu_sigma + std::abs(gw.mu - g0.mu))
+      << g.mu << " ± " << g.mu_sigma << "; at stage 1's tolerance " << gw.mu;
+  fs::remove_all(d);
+}
+
+TEST(IdentifyData, BadRecordingNamesTheFileAndColumn) {
+  const fs::path d = temp_dir("bad");
+  const auto p = write(d / "x.csv", "t,alpha_1,beta_1,u_1\n0,0,0,0\n0.001,0,0,0\n0.002,0,0,0\n");
+  const std::string e = error_of([&] { (void)read_recording_csv(p); });
+  EXPECT_NE(e.find("x.csv"), std::string::npos) << e;
+  EXPECT_NE(e.find("beta_1_dot"), std::string::npos) << e;
+  fs::remove_all(d);
+}
+
+// ---- the tool ------------------------------------------------------------------------------------------
+TEST(IdentifyTool, SmokeFitWritesItsSummaryAndScenes) {
+  const fs::path d = temp_dir("tool");
+  const auto pf = write(d / "p.yaml", "parameters:\n  - {name: K, min: 1, max: 10, reason: test}\n"
+                                      "  - {name: v_s, min: 1.0e-4, max: 1.0e-2, reason: test}\n");
+  const auto tf = write(d / "t.yaml", "targets:\n  - {measure: flat_speed, value: 0.02, tolerance: 0.001}\n"
+                                      "  - {measure: friction_gain, value: 0.1, tolerance: 0.02}\n");
+  const std::string cmd = std::string(PEDALWAVE_IDENTIFY_EXE) + " fit --smoke --quiet --jobs 2 --params " + pf.string() +
+                          " --targets " + tf.string() + " --out " + (d / "out").string() + " --write-scenes " +
+                          (d / "scenes").string() + " > " + (d / "log").string() + " 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  const toolkit::Json j = toolkit::Json::parse_file(d / "out" / "fit.json");
+  EXPECT_EQ(j["targets"].size(), 2u);
+  EXPECT_EQ(j["parameters"].size(), 2u);
+  EXPECT_TRUE(std::isfinite(j["targets"][std::size_t{0}]["residual"].number()));
+  EXPECT_TRUE(fs::exists(d / "scenes" / "paper_fit_flat_high_friction.yaml"));
+  EXPECT_NO_THROW((void)config::load_scene((d / "scenes" / "paper_fit_flat_low_friction.yaml").string()));
+  // Bad input: one line, exit 2.
+  const std::string bad = std::string(PEDALWAVE_IDENTIFY_EXE) + " fit --params " + (d / "none.yaml").string() +
+                          " > " + (d / "bad").string() + " 2>&1";
+  EXPECT_EQ(WEXITSTATUS(std::system(bad.c_str())), 2);
+  fs::remove_all(d);
+}

@@ -44,7 +44,8 @@ namespace {
 
 const std::vector<model::Method> kMethods = {
     model::Method::kExplicitEuler, model::Method::kSemiImplicitEuler,
-    model::Method::kImplicitVelocity, model::Method::kRK4, model::Method::kDormandPrince45};
+    model::Method::kImplicitVelocity, model::Method::kRK4, model::Method::kDormandPrince45,
+    model::Method::kImplicitContact};
 
 struct Job {
   int scene = 0;        // index into the scenes
@@ -93,6 +94,7 @@ std::string method_label(model::Method m) {
     case model::Method::kImplicitVelocity: return "implicit velocity";
     case model::Method::kRK4: return "RK4";
     case model::Method::kDormandPrince45: return "dopri45";
+    case model::Method::kImplicitContact: return "implicit contact";
   }
   return "?";
 }
@@ -103,8 +105,9 @@ std::string setting(const model::IntegratorOptions& o) {
 
 // Estimated cost (evaluations) of a run, to start the long ones first.
 double estimate(const RunSpec& s) {
-  const double stages = s.integ.method == model::Method::kRK4            ? 4
+  const double stages = s.integ.method == model::Method::kRK4                ? 4
                         : s.integ.method == model::Method::kImplicitVelocity ? 3
+                        : s.integ.method == model::Method::kImplicitContact  ? 9
                                                                               : 1;
   if (model::is_adaptive(s.integ.method)) return s.duration / 2e-4 * 7 * (1 - std::log10(s.integ.rtol) / 10);
   return s.duration / s.integ.h * stages;

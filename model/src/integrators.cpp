@@ -49,6 +49,7 @@ void validate(const IntegratorOptions& o) {
   if (!(o.h > 0) || !std::isfinite(o.h)) bad("h", o.h, "step must be finite and > 0 [s]");
   if (o.newton_iterations < 0 || o.newton_iterations > 50)
     bad("newton_iterations", o.newton_iterations, "must be 0 … 50");
+  if (!(o.theta >= 0.5 && o.theta <= 1.0)) bad("theta", o.theta, "must be in [0.5, 1]");
   if (is_adaptive(o.method)) {
     if (!(o.rtol > 0)) bad("rtol", o.rtol, "must be > 0");
     if (!(o.atol > 0)) bad("atol", o.atol, "must be > 0");
@@ -153,16 +154,12 @@ StepStatus Integrator::step(System& sys, double t, double h, VectorXd& q, Vector
   return (finite(q) && finite(v)) ? StepStatus::kOk : StepStatus::kNonFinite;
 }
 
-namespace {
-constexpr double kTheta = 0.55;  // implicit_contact's θ (integrators.hpp)
-}  // namespace
-
 // The θ-trapezoid with Newton corrections (integrators.hpp). Buffers: imp_ at (q₀, v₀) — its M,
 // F are needed by every correction —, imp1_ at the iterate, v1_ the iterate, q1_ its position,
 // dv_ the residual / correction. No allocation.
 StepStatus Integrator::step_implicit_contact(System& sys, double t, double h, VectorXd& q,
                                              VectorXd& v) {
-  const double th = kTheta, a = th * h, b = th * th * h * h;
+  const double th = o_.theta, a = th * h, b = th * th * h * h;
   ++stats_.evaluations;
   if (!sys.implicit_terms(t, q, v, imp_)) return StepStatus::kEvalFailed;
   // Predictor: linearized at the start of the step.

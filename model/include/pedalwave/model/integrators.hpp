@@ -42,7 +42,7 @@ enum class Method : std::uint8_t {
   kImplicitVelocity,   // (M − h ∂F/∂v − h² ∂F/∂q) Δv = h (F + h ∂F/∂q v) order 1, linearly implicit
   kRK4,                // classic Runge–Kutta                             order 4
   kDormandPrince45,    // embedded RK 5(4), adaptive step, error control  order 5
-  kImplicitContact,    // θ-trapezoid (θ = 0.55), Newton on contact/friction  order 2 − (2θ−1), A-stable
+  kImplicitContact,    // θ-trapezoid, Newton on contact/friction   order 2 at θ = ½, else 1; A-stable
 };
 // implicit_contact: the trapezoidal family in velocity form, its one implicit stage solved for
 // the contact normal forces and the regularized friction at the END of the step (not linearized
@@ -52,12 +52,14 @@ enum class Method : std::uint8_t {
 // up to IntegratorOptions::newton_iterations corrections with the Jacobian
 // M − θh ∂F/∂v − θ²h² ∂F/∂q re-evaluated at (q₁, v₁): each correction re-detects the contacts
 // and re-selects the friction branch (stick band |v_t| < v_s or saturated), so the kink of the
-// regularized law and the clamp f_N ≥ 0 are resolved, not extrapolated through. θ = 0.55 (kTheta)
-// damps the stiffest modes (|R(∞)| = (1−θ)/θ = 0.82) at a first-order error term of size
-// (θ − ½) h; ∂F/∂q, ∂F/∂v are the System's stiff terms (the plant: springs, PD, contact k and d,
-// friction slope; what they neglect is listed at Plant::implicit_terms). M is frozen at q₀.
+// regularized law and the clamp f_N ≥ 0 are resolved, not extrapolated through. θ = 0.55 (the
+// default, IntegratorOptions::theta) damps the stiffest modes (|R(∞)| = (1−θ)/θ = 0.82) at a
+// first-order error term of size (θ − ½) h (θ = ½: order 2, stiff modes undamped). ∂F/∂q, ∂F/∂v
+// are the System's stiff terms (the plant: springs, PD, contact k and d, friction slope; what they
+// neglect is listed at Plant::implicit_terms). M is frozen at q₀.
 std::string_view to_string(Method m);
-// Parses "euler", "semi_implicit_euler", "implicit_velocity", "rk4", "dopri45"; throws
+// Parses "euler", "semi_implicit_euler", "implicit_velocity", "rk4", "dopri45",
+// "implicit_contact"; throws
 // std::invalid_argument listing the accepted names.
 Method parse_method(std::string_view name);
 bool is_adaptive(Method m);
@@ -70,6 +72,8 @@ struct IntegratorOptions {
   double h_min = 1e-10;  // adaptive: smallest step before giving up [s]
   double h_max = 1e-2;   // adaptive: largest step [s]
   int newton_iterations = 2;  // implicit_contact: Newton corrections per step (0 = linearized) [-]
+  double theta = 0.55;        // implicit_contact: implicitness θ ∈ [0.5, 1] (0.5: trapezoid,
+                              // order 2, undamped stiff modes; 1: backward Euler) [-]
 };
 // Throws std::invalid_argument naming the option and the value.
 void validate(const IntegratorOptions& o);

@@ -83,7 +83,9 @@ struct IntegratorStats {
   std::uint64_t rejected = 0;     // rejected (adaptive) steps
   std::uint64_t evaluations = 0;  // acceleration / implicit-term evaluations
   std::uint64_t newton_unconverged = 0;  // implicit_contact steps that used every correction
-                                         // without reaching the tolerance
+                                         // without reaching |Δv|∞ ≤ 1e-10 (1 + |v|∞): with the
+                                         // default 2 corrections nearly all steps (a truncated
+                                         // Newton; 4 corrections converge in ~90 % of the steps)
   double h_last = 0.0;            // last step size [s]
 };
 

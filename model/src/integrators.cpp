@@ -170,11 +170,15 @@ StepStatus Integrator::step_implicit_contact(System& sys, double t, double h, Ve
   vtmp_ = lu_.solve(dv_);
   v1_ = v + vtmp_;
   const double tol = 1e-10;
+  imp1_.v_start = &v;
   bool converged = o_.newton_iterations == 0;
   for (int it = 0; it < o_.newton_iterations; ++it) {
     q1_ = q + ((1 - th) * h) * v + a * v1_;
     ++stats_.evaluations;
-    if (!sys.implicit_terms(t + h, q1_, v1_, imp1_)) return StepStatus::kEvalFailed;
+    if (!sys.implicit_terms(t + h, q1_, v1_, imp1_)) {
+      imp1_.v_start = nullptr;
+      return StepStatus::kEvalFailed;
+    }
     // Residual G(v₁) = M₀ (v₁ − v₀) − h [(1−θ) F₀ + θ F₁], Jacobian M₀ − θh D_v − θ²h² D_q at (q₁, v₁).
     vtmp_ = v1_ - v;
     dv_.noalias() = imp_.M * vtmp_;
@@ -189,6 +193,7 @@ StepStatus Integrator::step_implicit_contact(System& sys, double t, double h, Ve
       break;
     }
   }
+  imp1_.v_start = nullptr;
   if (!converged) ++stats_.newton_unconverged;
   q += ((1 - th) * h) * v + a * v1_;
   v = v1_;

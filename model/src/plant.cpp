@@ -183,6 +183,13 @@ void Plant::add_contact(int k_a, int k_b, double s, const Vec2& n, double depth,
       jt_(c) = t.x() * Ja_(0, c) + t.y() * Ja_(1, c);
     }
     const double r = fN > 0 ? fT / fN : 0.0;
+    // A Newton iterate sliding after the step started in the stick band or sliding the other way
+    // (ImplicitTerms::v_start): the stick band's slope, so that the next correction can land in it.
+    if (jac->v_start && with_friction && g.law == FrictionLaw::kRegularized && std::abs(vt) >= g.v_s) {
+      double vt0 = 0.0;
+      for (int c = 0; c < nb; ++c) vt0 += jt_(c) * (*jac->v_start)(c);
+      if (std::abs(vt0) < g.v_s || vt0 * vt < 0) dfdv = -mu * fN / g.v_s;
+    }
     for (int b = 0; b < nb; ++b) {
       const double jnb = jn_(b), jtb = jt_(b);
       for (int a = 0; a < nb; ++a) {

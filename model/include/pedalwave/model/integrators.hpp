@@ -21,6 +21,12 @@ struct ImplicitTerms {
   VectorXd F;    // generalized force F(q, v) = B u + Q − bias, (nq)
   MatrixXd dFdq; // ∂F/∂q of the stiff terms (springs, contact stiffness), nq×nq
   MatrixXd dFdv; // ∂F/∂v of the stiff terms (contact/joint damping, friction), nq×nq
+  // The velocity at the start of the step when (q, v) is a Newton iterate (implicit_contact), else
+  // null. A contact sliding at the iterate that started the step inside the stick band or sliding
+  // the other way crossed the band within the step: its friction slope in dFdv is then the stick
+  // band's (the slip branch's slope 0 lets Newton jump from one slip direction to the other and
+  // back, never entering the band). Only the Jacobian changes, never F.
+  const VectorXd* v_start = nullptr;
 };
 
 class System {

@@ -90,6 +90,9 @@ class Plant final : public System {
   // contact's normal and the slide of its material point s, ∂M/∂q, the Coriolis and gravity
   // derivatives. implicit_contact's Newton corrections re-evaluate these Jacobians at the end of
   // the step, so the neglected terms only slow its convergence; they never change its solution.
+  // With out.v_start (a Newton iterate), a regularized-friction contact sliding at (q, v) whose
+  // tangential velocity at v_start was inside the stick band or of the other sign gets the band's
+  // slope −μ f_N / v_s instead of 0 (ImplicitTerms::v_start).
   bool implicit_terms(double t, const VectorXd& q, const VectorXd& v, ImplicitTerms& out) override;
 
   // Motor torques u (N-1) the actuators apply at (q, v): input law, limits, fault gain, joint

@@ -70,7 +70,7 @@ IntegratorOptions read_integrator(const Reader& r) {
     try {
       o.method = parse_method(r["method"].as_string());
     } catch (const std::invalid_argument& e) {
-      r["method"].fail("one of euler, semi_implicit_euler, implicit_velocity, rk4, dopri45");
+      r["method"].fail("one of euler, semi_implicit_euler, implicit_velocity, rk4, dopri45, implicit_contact");
     }
   }
   // h below 1e-7 s never ends a run (1e-15: 1e16 steps for 10 s); above 0.1 s it is no step.

@@ -14,17 +14,18 @@ std::string_view to_string(Method m) {
     case Method::kImplicitVelocity: return "implicit_velocity";
     case Method::kRK4: return "rk4";
     case Method::kDormandPrince45: return "dopri45";
+    case Method::kImplicitContact: return "implicit_contact";
   }
   return "?";
 }
 
 Method parse_method(std::string_view name) {
   for (Method m : {Method::kExplicitEuler, Method::kSemiImplicitEuler, Method::kImplicitVelocity,
-                   Method::kRK4, Method::kDormandPrince45})
+                   Method::kRK4, Method::kDormandPrince45, Method::kImplicitContact})
     if (name == to_string(m)) return m;
   throw std::invalid_argument("integrator '" + std::string(name) +
                               "' is unknown: expected one of euler, semi_implicit_euler, "
-                              "implicit_velocity, rk4, dopri45");
+                              "implicit_velocity, rk4, dopri45, implicit_contact");
 }
 
 bool is_adaptive(Method m) { return m == Method::kDormandPrince45; }
@@ -46,6 +47,9 @@ void validate(const IntegratorOptions& o) {
     throw std::invalid_argument(os.str());
   };
   if (!(o.h > 0) || !std::isfinite(o.h)) bad("h", o.h, "step must be finite and > 0 [s]");
+  if (o.newton_iterations < 0 || o.newton_iterations > 50)
+    bad("newton_iterations", o.newton_iterations, "must be 0 … 50");
+  if (!(o.theta >= 0.5 && o.theta <= 1.0)) bad("theta", o.theta, "must be in [0.5, 1]");
   if (is_adaptive(o.method)) {
     if (!(o.rtol > 0)) bad("rtol", o.rtol, "must be > 0");
     if (!(o.atol > 0)) bad("atol", o.atol, "must be > 0");
@@ -65,6 +69,9 @@ Integrator::Integrator(int nq, const IntegratorOptions& o)
   imp_.dFdq = MatrixXd::Zero(nq, nq);
   imp_.dFdv = MatrixXd::Zero(nq, nq);
   A_ = MatrixXd::Zero(nq, nq);
+  imp1_ = imp_;
+  v1_ = VectorXd::Zero(nq);
+  q1_ = VectorXd::Zero(nq);
 }
 
 bool Integrator::eval(System& sys, double t, const VectorXd& y, VectorXd& f) {
@@ -110,6 +117,11 @@ StepStatus Integrator::step(System& sys, double t, double h, VectorXd& q, Vector
       q += h * v;
       break;
     }
+    case Method::kImplicitContact: {
+      const StepStatus s = step_implicit_contact(sys, t, h, q, v);
+      if (s != StepStatus::kOk) return s;
+      break;
+    }
     case Method::kRK4: {
       y_.head(nq_) = q;
       y_.tail(nq_) = v;
@@ -140,6 +152,52 @@ StepStatus Integrator::step(System& sys, double t, double h, VectorXd& q, Vector
   ++stats_.steps;
   stats_.h_last = h;
   return (finite(q) && finite(v)) ? StepStatus::kOk : StepStatus::kNonFinite;
+}
+
+// The θ-trapezoid with Newton corrections (integrators.hpp). Buffers: imp_ at (q₀, v₀) — its M,
+// F are needed by every correction —, imp1_ at the iterate, v1_ the iterate, q1_ its position,
+// dv_ the residual / correction. No allocation.
+StepStatus Integrator::step_implicit_contact(System& sys, double t, double h, VectorXd& q,
+                                             VectorXd& v) {
+  const double th = o_.theta, a = th * h, b = th * th * h * h;
+  ++stats_.evaluations;
+  if (!sys.implicit_terms(t, q, v, imp_)) return StepStatus::kEvalFailed;
+  // Predictor: linearized at the start of the step.
+  A_ = imp_.M - a * imp_.dFdv - b * imp_.dFdq;
+  dv_.noalias() = imp_.dFdq * v;
+  dv_ = h * (imp_.F + a * dv_);
+  lu_.compute(A_);
+  vtmp_ = lu_.solve(dv_);
+  v1_ = v + vtmp_;
+  const double tol = 1e-10;
+  imp1_.v_start = &v;
+  bool converged = o_.newton_iterations == 0;
+  for (int it = 0; it < o_.newton_iterations; ++it) {
+    q1_ = q + ((1 - th) * h) * v + a * v1_;
+    ++stats_.evaluations;
+    if (!sys.implicit_terms(t + h, q1_, v1_, imp1_)) {
+      imp1_.v_start = nullptr;
+      return StepStatus::kEvalFailed;
+    }
+    // Residual G(v₁) = M₀ (v₁ − v₀) − h [(1−θ) F₀ + θ F₁], Jacobian M₀ − θh D_v − θ²h² D_q at (q₁, v₁).
+    vtmp_ = v1_ - v;
+    dv_.noalias() = imp_.M * vtmp_;
+    dv_ -= ((1 - th) * h) * imp_.F + a * imp1_.F;
+    A_ = imp_.M - a * imp1_.dFdv - b * imp1_.dFdq;
+    lu_.compute(A_);
+    vtmp_.noalias() = lu_.solve(dv_);
+    v1_ -= vtmp_;
+    if (!v1_.allFinite()) break;
+    if (vtmp_.lpNorm<Eigen::Infinity>() <= tol * (1.0 + v1_.lpNorm<Eigen::Infinity>())) {
+      converged = true;
+      break;
+    }
+  }
+  imp1_.v_start = nullptr;
+  if (!converged) ++stats_.newton_unconverged;
+  q += ((1 - th) * h) * v + a * v1_;
+  v = v1_;
+  return StepStatus::kOk;
 }
 
 // Dormand–Prince 5(4) with FSAL: y_ holds the start state; y_new_ the 5th-order result; err the

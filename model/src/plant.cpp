@@ -186,11 +186,12 @@ void Plant::add_contact(int k_a, int k_b, double s, const Vec2& n, double depth,
       point_jacobian(m, data_, k_b, Jb_);
       Ja_ = (1 - s) * Ja_ + s * Jb_;
     }
-    add_contact_jacobian(n, fN, fT, dfdv, jac);
+    add_contact_jacobian(n, fN, fT, dfdv, vt, mu, with_friction, jac);
   }
 }
 
-void Plant::add_contact_jacobian(const Vec2& n, double fN, double fT, double dfdv, ImplicitTerms* jac) {
+void Plant::add_contact_jacobian(const Vec2& n, double fN, double fT, double dfdv, double vt, double mu,
+                                 bool with_friction, ImplicitTerms* jac) {
   const Model& m = model_;
   const Ground& g = scene_.ground;
   const Vec2 t(n.y(), -n.x());
@@ -204,6 +205,13 @@ void Plant::add_contact_jacobian(const Vec2& n, double fN, double fT, double dfd
     jt_(c) = t.x() * Ja_(0, c) + t.y() * Ja_(1, c);
   }
   const double r = fN > 0 ? fT / fN : 0.0;
+  // A Newton iterate sliding after the step started in the stick band or sliding the other way
+  // (ImplicitTerms::v_start): the stick band's slope, so that the next correction can land in it.
+  if (jac->v_start && with_friction && g.law == FrictionLaw::kRegularized && std::abs(vt) >= g.v_s) {
+    double vt0 = 0.0;
+    for (int c = 0; c < nb; ++c) vt0 += jt_(c) * (*jac->v_start)(c);
+    if (std::abs(vt0) < g.v_s || vt0 * vt < 0) dfdv = -mu * fN / g.v_s;
+  }
   for (int b = 0; b < nb; ++b) {
     const double jnb = jn_(b), jtb = jt_(b);
     for (int a = 0; a < nb; ++a) {
@@ -366,7 +374,7 @@ void Plant::add_shape_contact(const ShapePoint& c, const Vec2& n, double depth, 
       Ja_(0, col) += w * rx;
       Ja_(1, col) += w * rz;
     }
-    add_contact_jacobian(n, fN, fT, dfdv, jac);
+    add_contact_jacobian(n, fN, fT, dfdv, vt, mu, with_friction, jac);
   }
 }
 

@@ -311,6 +311,7 @@ const char* method_name(Method m) {
     case Method::kImplicitVelocity: return "implicit_velocity";
     case Method::kRK4: return "RK4";
     case Method::kDormandPrince45: return "dopri45";
+    case Method::kImplicitContact: return "implicit_contact";
   }
   return "?";
 }
@@ -387,7 +388,8 @@ MethodLimit StabilityReport::limit(Method m) const {
     case Method::kSemiImplicitEuler: return semi_implicit;
     case Method::kRK4: return rk4;
     case Method::kDormandPrince45: return dopri;
-    case Method::kImplicitVelocity: break;
+    case Method::kImplicitVelocity:
+    case Method::kImplicitContact: break;
   }
   MethodLimit none;
   none.method = m;
@@ -474,7 +476,8 @@ StabilityReport predict_stability(const Scene& scene, const ControlGains& gains)
 
 double growth_factor(const Scene& scene, const ControlGains& gains, Method method, double h,
                      double duration) {
-  if (method == Method::kImplicitVelocity || !(h > 0)) return 1.0;
+  if (method == Method::kImplicitVelocity || method == Method::kImplicitContact || !(h > 0))
+    return 1.0;
   const Analysis a = analyse(scene, gains);
   const double steps = duration / h;
   double rho = 1.0;
@@ -497,6 +500,10 @@ double growth_factor(const Scene& scene, const ControlGains& gains, Method metho
 
 std::string stability_message(const StabilityReport& r, Method method, double h) {
   std::ostringstream os;
+  if (method == Method::kImplicitContact)
+    return "implicit_contact (θ-trapezoid, θ = 0.55, contact and friction solved at the end of the "
+           "step) is A-stable: no step limit from these effects; h = " + fmt(h) +
+           " s is limited by accuracy only";
   if (method == Method::kImplicitVelocity)
     return "implicit_velocity (linearized backward Euler) has no step limit from these effects; "
            "h = " + fmt(h) + " s is limited by accuracy only";
@@ -542,7 +549,9 @@ StabilityCheck check(const Scene& scene, const ControlGains& gains, const Integr
   c.report = predict_stability(scene, gains);
   const Method m = integ.method;
   c.message = stability_message(c.report, m, integ.h);
-  if (m == Method::kImplicitVelocity || m == Method::kDormandPrince45) return c;
+  if (m == Method::kImplicitVelocity || m == Method::kImplicitContact ||
+      m == Method::kDormandPrince45)
+    return c;
   c.h_limit = c.report.limit(m).h_max;
   if (integ.h <= 0.8 * c.h_limit) return c;
   c.growth = growth_factor(scene, gains, m, integ.h, duration);

@@ -337,7 +337,7 @@ void print_summary(const Collector& c, const std::vector<EffectCase>& effects) {
   std::cout << "\n== one integrator step, flat_high_friction (N = 6), h = 1e-4 s ==\n";
   Table integ({"method", "step [µs]"});
   for (Method m : {Method::kExplicitEuler, Method::kSemiImplicitEuler, Method::kImplicitVelocity,
-                   Method::kRK4, Method::kDormandPrince45}) {
+                   Method::kRK4, Method::kDormandPrince45, Method::kImplicitContact}) {
     const std::string name(pedalwave::model::to_string(m));
     integ.add_row({name, us(c.ns("integrator_step/" + name))});
   }
@@ -372,7 +372,7 @@ int main(int argc, char** argv) {
     benchmark::RegisterBenchmark(("implicit_terms/" + e.name).c_str(), bm_implicit_terms, e.scene)
         ->Unit(benchmark::kNanosecond);
   for (Method m : {Method::kExplicitEuler, Method::kSemiImplicitEuler, Method::kImplicitVelocity,
-                   Method::kRK4, Method::kDormandPrince45})
+                   Method::kRK4, Method::kDormandPrince45, Method::kImplicitContact})
     benchmark::RegisterBenchmark(
         ("integrator_step/" + std::string(pedalwave::model::to_string(m))).c_str(),
         bm_integrator_step, m)

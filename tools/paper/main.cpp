@@ -58,7 +58,7 @@ void add_common(CLI::App* sub, Common& c) {
   sub->add_option("--jobs", c.jobs, "worker threads for independent runs")->check(CLI::Range(1, 256))
       ->capture_default_str();
   auto* integ = sub->add_option("--integrator", c.integrator,
-                                 "euler | semi_implicit_euler | implicit_velocity | rk4 | dopri45 (default: each "
+                                 "euler | semi_implicit_euler | implicit_velocity | rk4 | dopri45 | implicit_contact (default: each "
                                  "scene's own, the work-precision study's choice)");
   auto* h = sub->add_option("--h", c.h, "plant integrator step [s] (≤ the control period; with --integrator)")
                 ->check(cli::finite_positive());

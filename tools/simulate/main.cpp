@@ -60,7 +60,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--rate", rate, "control rate [Hz]")->check(kPositive)->capture_default_str();
   app.add_option("--integrator", integrator,
-                 "euler | semi_implicit_euler | implicit_velocity | rk4 | dopri45 (default: the scene's)");
+                 "euler | semi_implicit_euler | implicit_velocity | rk4 | dopri45 | implicit_contact (default: the scene's)");
   app.add_option("--h", h, "integrator step (initial step for dopri45) [s], ≤ the control period")
       ->check(cli::finite_in(1e-7, 0.1));
   app.add_option("--rtol", rtol, "relative tolerance of dopri45 (only with dopri45)")->check(cli::finite_in(1e-14, 1));

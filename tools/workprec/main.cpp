@@ -45,7 +45,8 @@ namespace {
 
 const std::vector<model::Method> kMethods = {
     model::Method::kExplicitEuler, model::Method::kSemiImplicitEuler,
-    model::Method::kImplicitVelocity, model::Method::kRK4, model::Method::kDormandPrince45};
+    model::Method::kImplicitVelocity, model::Method::kRK4, model::Method::kDormandPrince45,
+    model::Method::kImplicitContact};
 
 struct Job {
   int scene = 0;        // index into the scenes
@@ -98,6 +99,7 @@ std::string method_label(model::Method m) {
     case model::Method::kImplicitVelocity: return "implicit velocity";
     case model::Method::kRK4: return "RK4";
     case model::Method::kDormandPrince45: return "dopri45";
+    case model::Method::kImplicitContact: return "implicit contact";
   }
   return "?";
 }
@@ -108,8 +110,9 @@ std::string setting(const model::IntegratorOptions& o) {
 
 // Estimated cost (evaluations) of a run, to start the long ones first.
 double estimate(const RunSpec& s) {
-  const double stages = s.integ.method == model::Method::kRK4            ? 4
+  const double stages = s.integ.method == model::Method::kRK4                ? 4
                         : s.integ.method == model::Method::kImplicitVelocity ? 3
+                        : s.integ.method == model::Method::kImplicitContact  ? 9
                                                                               : 1;
   if (model::is_adaptive(s.integ.method)) return s.duration / 2e-4 * 7 * (1 - std::log10(s.integ.rtol) / 10);
   return s.duration / s.integ.h * stages;
@@ -192,6 +195,9 @@ int work_precision(const Options& opt) {
     const RunSpec b = base(s);
     for (model::Method m : kMethods) {
       std::vector<double> hs = m == model::Method::kRK4 ? rk4_h : fixed_h;
+      // implicit_contact: three evaluations per step; below 5e-5 s it only adds cost.
+      if (m == model::Method::kImplicitContact)
+        hs.erase(std::remove_if(hs.begin(), hs.end(), [](double h) { return h < 5e-5; }), hs.end());
       if (!b.closed_loop && m != model::Method::kDormandPrince45) hs.push_back(2e-3);  // > period
       if (m == model::Method::kDormandPrince45) {
         for (double rt : rtols) {
@@ -469,7 +475,8 @@ int main(int argc, char** argv) {
     if (opt.fidelity)
       opt.scenes = {dir + "/flat_high_friction.yaml", dir + "/stair.yaml"};
     else
-      for (const char* n : {"free_fall", "flat_high_friction", "flat_low_friction", "friction_change", "stair"})
+      for (const char* n : {"free_fall", "flat_high_friction", "flat_low_friction", "friction_change", "stair",
+                            "stair_grip"})
         opt.scenes.push_back(dir + "/" + n + ".yaml");
   }
   try {

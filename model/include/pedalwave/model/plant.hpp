@@ -81,6 +81,19 @@ class Plant final : public System {
   const PlantFaults& faults() const { return faults_; }
 
   bool acceleration(double t, const VectorXd& q, const VectorXd& v, VectorXd& a) override;
+  // ∂F/∂q and ∂F/∂v of the stiff terms (implicit_velocity, implicit_contact): SEA springs, module
+  // PD and motor friction (zero slope where the torque limit saturates), and for each contact
+  // carrying force at (q, v), with J_n = nᵀ J_p, J_t = tᵀ J_p the contact point's Jacobian rows
+  // (analytic, point_jacobian), r = f_T / f_N:
+  //   ∂F/∂q = −k (J_nᵀ J_n + r J_tᵀ J_n),  ∂F/∂v = −d (J_nᵀ J_n + r J_tᵀ J_n) + (∂f_T/∂v_t) J_tᵀ J_t.
+  // Neglected (non-stiff, or second order in the penetration): ∂J_p/∂q · f (the contact force's
+  // turn with the links — f ≤ the robot's weight against the stiffness k), the turn of a corner
+  // contact's normal and the slide of its material point s, ∂M/∂q, the Coriolis and gravity
+  // derivatives. implicit_contact's Newton corrections re-evaluate these Jacobians at the end of
+  // the step, so the neglected terms only slow its convergence; they never change its solution.
+  // With out.v_start (a Newton iterate), a regularized-friction contact sliding at (q, v) whose
+  // tangential velocity at v_start was inside the stick band or of the other sign gets the band's
+  // slope −μ f_N / v_s instead of 0 (ImplicitTerms::v_start).
   bool implicit_terms(double t, const VectorXd& q, const VectorXd& v, ImplicitTerms& out) override;
 
   // Motor torques u (N-1) the actuators apply at (q, v): input law, limits, fault gain, joint
@@ -119,7 +132,8 @@ class Plant final : public System {
                    const VectorXd& v, double xt, int slot, Eigen::Ref<VectorXd> Q,
                    ImplicitTerms* jac, ContactReport* report);
   // The contact's stiff terms on jac from Ja_ (the contact point's Jacobian, 2×nq).
-  void add_contact_jacobian(const Vec2& n, double fN, double fT, double dfdv, ImplicitTerms* jac);
+  void add_contact_jacobian(const Vec2& n, double fN, double fT, double dfdv, double vt, double mu,
+                            bool with_friction, ImplicitTerms* jac);
 
   // Thick links (scene robot.link_shape capsule or box; README "Link shapes"). A contact point is
   // the material point at (1 − s)·p_ka + s·p_kb + r: the body points k_a, k_b (both on link la,

@@ -17,6 +17,7 @@
 //   semi-implicit Euler: spectral radius of its amplification matrix ≤ 1 (per mode with damping
 //                   rate c and frequency ω: hc < 2 and h²ω² + 2hc < 4; ωh < 2 when undamped)
 //   implicit_velocity: linearized backward Euler, A-stable: no step limit from these effects.
+//   implicit_contact: θ-trapezoid (θ ≥ ½) with Newton corrections, A-stable: none either.
 // The binding mode is attributed to the effect with the largest share of its stability budget
 // (h²ω_e²/4 + h c_e/2 with ω_e², c_e the effect's Rayleigh quotients on the mode shape).
 //

@@ -397,4 +397,28 @@ bool SdoServer::on_frame(const can_frame& f, can_frame& r) noexcept {
   }
 }
 
+const char* emcy_text(std::uint16_t code) noexcept {
+  switch (code) {
+    case 0x0000: return "error reset / no error";
+    case 0x2310: return "continuous over-current (device output side)";
+    case kEmcyOverTemperature: return "excess temperature (device)";
+    case kEmcyEncoder: return "incremental sensor 1 fault (encoder)";
+    case 0x8130: return "life guard error or heartbeat error";
+    default:
+      switch (code >> 12) {
+        case 0x1: return "generic error";
+        case 0x2: return "current error";
+        case 0x3: return "voltage error";
+        case 0x4: return "temperature error";
+        case 0x5: return "device hardware error";
+        case 0x6: return "device software error";
+        case 0x7: return "additional modules error";
+        case 0x8: return "monitoring error";
+        case 0x9: return "external error";
+        case 0xF: return "additional functions error";
+        default: return "unknown emergency error code";
+      }
+  }
+}
+
 }  // namespace pedalwave::drivers::canopen

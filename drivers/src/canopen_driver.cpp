@@ -15,8 +15,7 @@
 #include <system_error>
 
 #include "pedalwave/drivers/bus_budget.hpp"
-#include "pedalwave/drivers/canopen_emulator.hpp"
-#include "posix_util.hpp"
+#include "pedalwave/drivers/posix_util.hpp"
 
 namespace pedalwave::drivers {
 namespace {

@@ -16,7 +16,7 @@
 #include "pedalwave/drivers/bus_budget.hpp"
 #include "pedalwave/drivers/wire.hpp"
 #include "pedalwave/drivers/xseries_driver.hpp"
-#include "posix_util.hpp"
+#include "pedalwave/drivers/posix_util.hpp"
 
 namespace pedalwave::drivers {
 namespace {

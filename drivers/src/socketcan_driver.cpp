@@ -13,7 +13,7 @@
 #include <system_error>
 
 #include "pedalwave/drivers/bus_budget.hpp"
-#include "posix_util.hpp"
+#include "pedalwave/drivers/posix_util.hpp"
 
 namespace pedalwave::drivers {
 namespace {

@@ -11,7 +11,7 @@
 
 #include "pedalwave/drivers/bus_budget.hpp"
 #include "pedalwave/drivers/wire.hpp"
-#include "posix_util.hpp"
+#include "pedalwave/drivers/posix_util.hpp"
 
 namespace pedalwave::drivers {
 

@@ -1,4 +1,5 @@
 #include "pedalwave/drivers/sim_driver.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 #include <time.h>
 
@@ -9,11 +10,7 @@
 namespace pedalwave::drivers {
 
 namespace {
-std::int64_t now_monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
+using pedalwave::monotonic_ns;
 
 // Seqlock copy of a trivially copyable value: the reader retries while a write is in flight.
 template <class Slot, class T>
@@ -200,7 +197,7 @@ void SimDriver::start() {
   if (opt_.clock != SimClock::kFreeRunning || running_.exchange(true)) return;
   Feedback fb{};
   measure_into(fb);
-  fb.stamp_ns = now_monotonic_ns();
+  fb.stamp_ns = monotonic_ns();
   seq_store(fb_shared_, fb);
   thread_ = std::thread([this] { plant_thread(); });
 }
@@ -214,7 +211,7 @@ void SimDriver::stop() {
 // taking the newest command each time and publishing the newest measurement.
 void SimDriver::plant_thread() {
   const auto period_ns = static_cast<std::int64_t>(std::llround(opt_.period * 1e9));
-  std::int64_t next = now_monotonic_ns();
+  std::int64_t next = monotonic_ns();
   std::uint64_t last_cmd_seq = 0;
   Command cmd{};
   Feedback fb{};
@@ -230,7 +227,7 @@ void SimDriver::plant_thread() {
     }
     advance_one_period();
     measure_into(fb);
-    fb.stamp_ns = now_monotonic_ns();
+    fb.stamp_ns = monotonic_ns();
     seq_store(fb_shared_, fb);
   }
 }

@@ -6,12 +6,6 @@
 
 namespace pedalwave::runtime {
 
-std::int64_t monotonic_ns() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 NextDeadline next_deadline(std::int64_t deadline_ns, std::int64_t period_ns,
                            std::int64_t end_ns) noexcept {
   NextDeadline n;

@@ -17,6 +17,7 @@
 #include "pedalwave/telemetry/command_validation.hpp"
 #include "pedalwave/telemetry/names.hpp"
 #include "pedalwave/telemetry/ros_standard.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace pedalwave::telemetry {
 
@@ -24,12 +25,8 @@ using namespace detail;
 
 namespace {
 
-std::int64_t clock_ns(clockid_t id) {
-  timespec ts{};
-  clock_gettime(id, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-std::int64_t monotonic_ns() { return clock_ns(CLOCK_MONOTONIC); }
+using pedalwave::clock_ns;
+using pedalwave::monotonic_ns;
 
 // The runtime's outcome text of each command kind starts with this (runtime.cpp,
 // apply_operator_command); the event carries the command id as its value.

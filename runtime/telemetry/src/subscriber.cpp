@@ -10,6 +10,7 @@
 
 #include "convert.hpp"
 #include "domain.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace pedalwave::telemetry {
 
@@ -17,11 +18,7 @@ using namespace detail;
 
 namespace {
 
-std::int64_t monotonic_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
+using pedalwave::monotonic_ns;
 
 // One reader and how to dispatch its samples. Samples are taken serialized (dds_takecdr): the
 // bytes go to the raw listeners as they are, then they are deserialized into `sample` (reused,

@@ -5,6 +5,8 @@
 
 #include <cstdint>
 
+#include "pedalwave/interface/clock.hpp"
+
 namespace pedalwave::runtime {
 
 enum class ClockMode : std::uint8_t {
@@ -12,8 +14,8 @@ enum class ClockMode : std::uint8_t {
   kLockstep,      // counter; sleep_until() jumps the counter to the deadline
 };
 
-// Monotonic time [ns] (CLOCK_MONOTONIC).
-std::int64_t monotonic_ns() noexcept;
+// Monotonic time [ns] (CLOCK_MONOTONIC): the project's one clock helper (interface/clock.hpp).
+using pedalwave::monotonic_ns;
 
 // Where the next deadline goes after a cycle that ended at end_ns, given the deadline the cycle
 // woke for. The nominal next deadline is deadline_ns + period_ns. If the cycle ended after it

@@ -85,27 +85,7 @@ std::span<const ObjectEntry> module_dictionary() noexcept;
 // drivers/canopen/pedalwave_module.eds is this text.
 std::string module_eds();
 
-// Further SDO abort codes the PDO mapping procedure uses (CiA 301).
-inline constexpr std::uint32_t kAbortNotMappable = 0x06040041;  // object cannot be mapped to the PDO
-inline constexpr std::uint32_t kAbortPdoLength = 0x06040042;    // mapped objects exceed the PDO length
-
-// Manufacturer objects: the CSP position loop's gains (REAL32).
-inline constexpr std::uint16_t kObjCspKp = 0x2010;  // [N·m/rad]
-inline constexpr std::uint16_t kObjCspKd = 0x2011;  // [N·m·s/rad]
-// Profile objects beyond cia402.hpp's.
-inline constexpr std::uint16_t kObjErrorCode = 0x603F;        // uint16, last EMCY code
-inline constexpr std::uint16_t kObjRatedTorque = 0x6076;      // uint32 [mN·m]
-inline constexpr std::uint16_t kObjEncoderResolution = 0x608F;  // :01 increments, :02 revolutions
-inline constexpr std::uint16_t kObjVelocityOffset = 0x60B1;   // int32 [inc/s]
-inline constexpr std::uint16_t kObjTorqueOffset = 0x60B2;     // int16 [‰]
-inline constexpr std::uint16_t kObjDeflectionResolution = 0x6001;  // CiA 406 measuring units / rev
-inline constexpr std::uint16_t kObjDeflection = 0x6004;       // CiA 406 position value
-inline constexpr std::uint32_t kDeviceType = 0x00020192;      // CiA 402, servo drive
-
-// EMCY codes the emulated drives send.
-inline constexpr std::uint16_t kEmcyOverTemperature = 0x4210;  // excess temperature device
-inline constexpr std::uint16_t kEmcyEncoder = 0x7305;          // incremental sensor 1 fault
-const char* emcy_text(std::uint16_t code) noexcept;  // "excess temperature (device)", …
+// The objects and EMCY codes of the dictionary are canopen.hpp's (shared with the master).
 
 struct CanOpenEmulatorConfig {
   std::array<std::uint8_t, kMaxJoints> node{};  // node id of joint j; 0 = j + 1

@@ -15,7 +15,7 @@
 #include <stdexcept>
 
 #include "pedalwave/drivers/bus_budget.hpp"
-#include "posix_util.hpp"
+#include "pedalwave/drivers/posix_util.hpp"
 
 namespace pedalwave::drivers::canopen {
 namespace {
@@ -187,29 +187,6 @@ const char* to_string(Access a) noexcept {
 
 std::span<const ObjectEntry> module_dictionary() noexcept { return kDictionary; }
 
-const char* emcy_text(std::uint16_t code) noexcept {
-  switch (code) {
-    case 0x0000: return "error reset / no error";
-    case 0x2310: return "continuous over-current (device output side)";
-    case kEmcyOverTemperature: return "excess temperature (device)";
-    case kEmcyEncoder: return "incremental sensor 1 fault (encoder)";
-    case 0x8130: return "life guard error or heartbeat error";
-    default:
-      switch (code >> 12) {
-        case 0x1: return "generic error";
-        case 0x2: return "current error";
-        case 0x3: return "voltage error";
-        case 0x4: return "temperature error";
-        case 0x5: return "device hardware error";
-        case 0x6: return "device software error";
-        case 0x7: return "additional modules error";
-        case 0x8: return "monitoring error";
-        case 0x9: return "external error";
-        case 0xF: return "additional functions error";
-        default: return "unknown emergency error code";
-      }
-  }
-}
 
 std::string module_eds() {
   std::ostringstream o;

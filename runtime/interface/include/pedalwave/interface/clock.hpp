@@ -1,12 +1,12 @@
-// Small POSIX helpers shared by the drivers and the emulator (internal header).
+// The one clock helper of the project: nanoseconds of a POSIX clock, CLOCK_MONOTONIC by default,
+// and back to a timespec. Async-signal-safe and allocation-free (clock_gettime only).
 #pragma once
 
-#include <fcntl.h>
 #include <time.h>
 
 #include <cstdint>
 
-namespace pedalwave::drivers::detail {
+namespace pedalwave {
 
 inline std::int64_t clock_ns(clockid_t id) noexcept {
   timespec ts{};
@@ -15,6 +15,7 @@ inline std::int64_t clock_ns(clockid_t id) noexcept {
 }
 inline std::int64_t monotonic_ns() noexcept { return clock_ns(CLOCK_MONOTONIC); }
 
+// A time in ns as a timespec (negative times clamp to 0).
 inline timespec to_timespec(std::int64_t ns) noexcept {
   if (ns < 0) ns = 0;
   timespec ts{};
@@ -23,9 +24,4 @@ inline timespec to_timespec(std::int64_t ns) noexcept {
   return ts;
 }
 
-inline bool set_nonblocking(int fd) noexcept {
-  const int fl = fcntl(fd, F_GETFL, 0);
-  return fl >= 0 && fcntl(fd, F_SETFL, fl | O_NONBLOCK) == 0;
-}
-
-}  // namespace pedalwave::drivers::detail
+}  // namespace pedalwave

@@ -259,6 +259,16 @@ const ModuleIdentity& SerialDriver::identity(int j) const {
 
 const DriverCounters& SerialDriver::counters() const { return x_ ? x_->counters() : counters_; }
 
+FeedbackSpec SerialDriver::feedback_spec() const {
+  if (x_) return x_->feedback_spec();
+  FeedbackSpec f;
+  f.beta_lsb = wire::kBetaLsb;
+  f.beta_dot_lsb = wire::kBetaDotLsb;
+  f.deflection_lsb = wire::kDeflectionLsb;
+  f.torque_lsb = wire::kTauLsb;
+  return f;
+}
+
 void SerialDriver::configure_modules(std::int64_t reply_timeout_ns) {
   if (x_) {
     x_->configure(reply_timeout_ns);

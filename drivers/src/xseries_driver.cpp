@@ -3,6 +3,7 @@
 #include <poll.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -64,7 +65,7 @@ std::string hw_error_text(std::uint8_t hw) {
 XSeriesDriver::XSeriesDriver(int fd, const SerialConfig& cfg)
     : fd_(fd), joints_(cfg.joints), baud_(cfg.baud), sensor_offset_(cfg.sensor_id_offset),
       k_t_(cfg.torque_constant), set_mode_(cfg.set_operating_mode),
-      write_timeout_ns_(cfg.write_timeout_ns) {
+      stale_limit_(cfg.max_stale_cycles), write_timeout_ns_(cfg.write_timeout_ns) {
   try {
     if (fd < 0)
       throw std::invalid_argument("X-series driver: fd = " + std::to_string(fd) +
@@ -81,6 +82,10 @@ XSeriesDriver::XSeriesDriver(int fd, const SerialConfig& cfg)
     if (!(k_t_ > 0) || !std::isfinite(k_t_))
       throw std::invalid_argument("X-series driver: torque_constant = " + std::to_string(k_t_) +
                                   " N·m/A, expected > 0 (XM430-W350 at 12 V: 1.78)");
+    if (stale_limit_ < 1 || stale_limit_ > 1000)
+      throw std::invalid_argument("X-series driver: max_stale_cycles = " + std::to_string(stale_limit_) +
+                                  ", expected 1 … 1000 cycles (how old a sample the host's PD may "
+                                  "act on)");
     const double steps = std::round(cfg.return_delay_s / 2e-6);
     if (!(steps >= 0 && steps <= 254))
       throw std::invalid_argument("X-series driver: return_delay = " +
@@ -489,6 +494,10 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   sample_applied_seq_ = applied_seq_;
   sample_applied_ns_ = applied_ns_;
   const bool sent = write_all(bulk_tx_.data(), bulk_len_, deadline_ns);
+  // Nothing samples before the request has been handed to the kernel: a host preempted between
+  // its clock read and the write (a loaded machine: milliseconds) put the sample that much early,
+  // and the observer's consistency check saw c ≈ that time × β̇ (0.013 rad over an overrun).
+  sample_ns_ = std::max(sample_ns_, detail::monotonic_ns());
   if (sent) {
     ++counters_.frames_tx;
   } else {
@@ -529,6 +538,7 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
       out.applied_seq[ju] = applied_seq_;
       out.applied_ns[ju] = applied_seq_ == kNoCommandSeq ? 0 : applied_ns_[ju];
       handed_ns_[ju] = sample_ns_;
+      age_[ju] = 0;
       ++fresh;
     } else if (late_servo_got_[ju] && late_sensor_got_[ju] && prev_sample_ns_ > handed_ns_[ju]) {
       // No fresh answer, but the previous Bulk Read's came late: an older sample, at its time.
@@ -540,12 +550,25 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
       out.applied_seq[ju] = prev_applied_seq_;
       out.applied_ns[ju] = prev_applied_seq_ == kNoCommandSeq ? 0 : prev_applied_ns_[ju];
       handed_ns_[ju] = prev_sample_ns_;
+      age_[ju] = 1;
       ++counters_.late_used;
       ++late_used;
     } else {
       st |= kStatusMissing;
       ++counters_.missing;
       out.sample_ns[ju] = 0;
+    }
+    // How old the values a host law acts on are: 0 fresh, 1 the previous Bulk Read's (late),
+    // one more per cycle without either. Beyond stale_limit the law is blind: kStatusStaleFeedback,
+    // and write() gives the servo no torque until a sample comes again.
+    if (st & kStatusMissing) ++age_[ju];
+    if (have_sample_[ju] && age_[ju] > 0) {
+      ++counters_.held;
+      if (age_[ju] > counters_.held_age_max) counters_.held_age_max = age_[ju];
+    }
+    if (have_sample_[ju] && age_[ju] > static_cast<std::uint64_t>(stale_limit_)) {
+      st |= kStatusStaleFeedback;
+      ++counters_.stale_feedback;
     }
     if (!torque_on_[ju]) st |= kStatusTorqueOff;
     if (goal_flags_[ju] & wire::kQuantClamped) st |= kStatusSaturated;
@@ -576,6 +599,9 @@ bool XSeriesDriver::send(const Command* cmd, std::int64_t until_ns) noexcept {
              cmd->kd[ju] * (cmd->beta_dot_ref[ju] - beta_dot_[ju]);
         if (!have_sample_[ju]) u = std::nan("");  // no sample yet: no law to evaluate
       }
+      // The controller's host-side PD (pd_placement: host) is in τ: on a sample older than
+      // stale_limit cycles it is blind, and the servo gets no torque (it stays enabled).
+      if (have_sample_[ju] && age_[ju] > static_cast<std::uint64_t>(stale_limit_)) u = 0.0;
       g = dxl::x::goal_current(u, k_t_, lsb_[ju], identity_[ju].current_limit, flags);
       if (flags & wire::kQuantNotFinite) on[ju] = false;  // NaN/Inf: torque off, as a module
     }
@@ -612,15 +638,31 @@ bool XSeriesDriver::send(const Command* cmd, std::int64_t until_ns) noexcept {
     ++counters_.tx_dropped;
     return false;
   }
+  const std::int64_t written = detail::monotonic_ns();  // no servo acts before this
   counters_.frames_tx += n > first ? 2 : 1;
   for (int j = 0; j < joints_; ++j) {
     const auto ju = static_cast<std::size_t>(j);
     // A goal acts when its Sync Write has arrived; a torque switch when the whole buffer has.
-    applied_ns_[ju] = t0 + wire_ns(torque_on_[ju] != on[ju] ? n : first);
+    applied_ns_[ju] = std::max(written, t0 + wire_ns(torque_on_[ju] != on[ju] ? n : first));
     torque_on_[ju] = on[ju];
     goal_[ju] = on[ju] ? wire::get_i16(data_.data() + 2 * ju) : std::int16_t{0};
   }
   return true;
+}
+
+FeedbackSpec XSeriesDriver::feedback_spec() const {
+  FeedbackSpec f;
+  f.beta_lsb = dxl::x::kPositionLsb;         // Present Position: 4096 per revolution
+  f.beta_dot_lsb = dxl::x::kVelocityLsb;     // Present Velocity: 0.229 rev/min
+  f.deflection_lsb = wire::kDeflectionLsb;   // the sensor's deflection (124)
+  for (int j = 0; j < joints_; ++j)          // Goal Current: the servo's current LSB × k_t
+    f.torque_lsb = std::max(f.torque_lsb, lsb_[static_cast<std::size_t>(j)] * k_t_);
+  // A servo samples when the Bulk Read reaches it; the host stamps that as its send time + wire
+  // time. The request's delivery varies by the adapter's (USB-serial: 1 ms latency timer) or the
+  // kernel's (a pty's flip buffer on a loaded host) jitter.
+  f.sample_time_uncertainty = 1e-3;
+  f.stale_limit = stale_limit_;
+  return f;
 }
 
 IoStatus XSeriesDriver::write(const Command& cmd) {

@@ -60,6 +60,10 @@ struct SerialConfig {
   double torque_constant = 1.78;
   int sensor_id_offset = 100;
   bool set_operating_mode = true;
+  // X-series only: the host evaluates the PD (the controller's pd_placement: host); a joint whose
+  // last sample is more than this many cycles old gets no torque and is flagged
+  // kStatusStaleFeedback (the observer names it stale_feedback) [cycles].
+  int max_stale_cycles = 8;
 };
 
 // What configure_modules() found on module j (joint j + 1, ID j + 1).
@@ -108,6 +112,8 @@ class SerialDriver final : public Driver {
   IoStatus write(const Command& cmd) override;
   void safe_stop() override;
   const DriverCounters& counters() const override;
+  // The wire's resolutions (wire.hpp: β, β̇, deflection, τ), no host law; X-series: its own.
+  FeedbackSpec feedback_spec() const override;
   std::uint8_t sync_counter() const { return counter_; }
   const ModuleClock& clock(int j) const { return clocks_[static_cast<std::size_t>(j)]; }
 

@@ -79,6 +79,9 @@ class XSeriesDriver final : public Driver {
   IoStatus write(const Command& cmd) override;
   void safe_stop() override;
   const DriverCounters& counters() const override { return counters_; }
+  // Present Position / Velocity LSBs, the sensor's deflection LSB, Goal Current LSB × k_t, and
+  // SerialConfig::max_stale_cycles as the stale limit of the host-side PD.
+  FeedbackSpec feedback_spec() const override;
 
  private:
   enum class Dev : std::uint8_t { kNone, kServo, kSensor };
@@ -102,6 +105,7 @@ class XSeriesDriver final : public Driver {
   int sensor_offset_ = 100;
   double k_t_ = 1.78;
   bool set_mode_ = true;
+  int stale_limit_ = 8;                // SerialConfig::max_stale_cycles [cycles]
   std::uint8_t return_delay_steps_ = 0;
   std::uint8_t watchdog_steps_ = 25;   // Bus Watchdog to set [20 ms]
   std::int64_t write_timeout_ns_ = 0;
@@ -135,6 +139,7 @@ class XSeriesDriver final : public Driver {
   // The sample handed out last (what write() evaluates the law on).
   std::array<double, kMaxJoints> beta_{}, beta_dot_{}, deflection_{};
   std::array<bool, kMaxJoints> have_sample_{};
+  std::array<std::uint64_t, kMaxJoints> age_{};  // cycles since that sample's Bulk Read [-]
   // Commands: per servo whether its torque is on, the last goal, and what was applied when.
   std::array<bool, kMaxJoints> torque_on_{};
   std::array<std::int16_t, kMaxJoints> goal_{};

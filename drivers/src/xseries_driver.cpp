@@ -29,28 +29,12 @@ double xseries_current_lsb(std::uint16_t model) noexcept {
 }
 
 namespace {
-const char* error_name(std::uint8_t e) {
-  switch (e & 0x7F) {
-    case dxl::kErrResultFail: return "Result Fail";
-    case dxl::kErrInstruction: return "Instruction Error";
-    case dxl::kErrCrc: return "CRC Error";
-    case dxl::kErrDataRange: return "Data Range Error";
-    case dxl::kErrDataLength: return "Data Length Error";
-    case dxl::kErrDataLimit: return "Data Limit Error";
-    case dxl::kErrAccess: return "Access Error";
-    default: return "unknown error";
-  }
-}
 std::string register_name(bool sensor, std::uint16_t addr) {
   const dxl::Register* r = dxl::register_at(
       sensor ? std::span<const dxl::Register>(dxl::x::kSensorRegisters)
              : std::span<const dxl::Register>(dxl::x::kRegisters),
       addr);
   return "register " + std::to_string(addr) + " (" + (r ? r->name : "?") + ")";
-}
-std::string baud_text(int index) {
-  const int b = dxl::baud_of_index(index);
-  return b > 0 ? std::to_string(b) + " baud" : "no rate of the index";
 }
 std::string hw_error_text(std::uint8_t hw) {
   std::string s;
@@ -66,6 +50,7 @@ XSeriesDriver::XSeriesDriver(int fd, const SerialConfig& cfg)
     : fd_(fd), joints_(cfg.joints), baud_(cfg.baud), sensor_offset_(cfg.sensor_id_offset),
       k_t_(cfg.torque_constant), set_mode_(cfg.set_operating_mode),
       stale_limit_(cfg.max_stale_cycles), write_timeout_ns_(cfg.write_timeout_ns) {
+  link_.attach(fd);
   try {
     if (fd < 0)
       throw std::invalid_argument("X-series driver: fd = " + std::to_string(fd) +
@@ -150,54 +135,18 @@ std::string XSeriesDriver::name(int j, bool sensor) const {
 }
 
 // ---- Configuration -------------------------------------------------------------------------------
-bool XSeriesDriver::transact(const std::uint8_t* p, std::size_t n, std::uint8_t id,
-                             std::size_t params, std::int64_t timeout_ns) {
-  std::uint8_t junk[256];
-  while (::read(fd_, junk, sizeof junk) > 0) {
-  }
-  rx_len_ = 0;
-  const std::int64_t until = detail::monotonic_ns() + timeout_ns;
-  if (!write_all(p, n, until)) return false;
-  for (;;) {
-    std::size_t pos = 0;
-    while (pos < rx_len_) {
-      std::size_t used = 0;
-      const dxl::DxlStatus s = dxl::parse_packet(
-          std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
-      if (s == dxl::DxlStatus::kNeedMore) break;
-      pos += used;
-      // A status packet of `id` with the expected parameter count (or an error): a late answer
-      // to an earlier try of another request has another length, and is skipped.
-      if (s == dxl::DxlStatus::kOk && pkt_.instruction == dxl::kInstStatus && pkt_.id == id &&
-          (pkt_.param_count == params || (pkt_.error & 0x7F) != 0)) {
-        rx_len_ = 0;
-        return true;
-      }
-    }
-    std::memmove(rx_.data(), rx_.data() + pos, rx_len_ - pos);
-    rx_len_ -= pos;
-    const std::int64_t left = until - detail::monotonic_ns();
-    if (left <= 0) return false;
-    pollfd pf{fd_, POLLIN, 0};
-    const timespec ts = detail::to_timespec(left);
-    if (::ppoll(&pf, 1, &ts, nullptr) > 0) {
-      const ssize_t r = ::read(fd_, rx_.data() + rx_len_, rx_.size() - rx_len_);
-      if (r > 0) rx_len_ += static_cast<std::size_t>(r);
-    }
-  }
-}
-
 std::vector<std::uint8_t> XSeriesDriver::read_registers(int j, bool sensor, std::uint16_t addr,
                                                         std::uint16_t len, std::int64_t timeout_ns) {
   const auto id = static_cast<std::uint8_t>(j + 1 + (sensor ? sensor_offset_ : 0));
   std::size_t n = 0;
   dxl::build_read(id, addr, len, std::span<std::uint8_t>(tx_.data(), dxl::kMaxPacket), n);
   for (int attempt = 0; attempt < 3; ++attempt) {
-    if (!transact(tx_.data(), n, id, len, timeout_ns)) continue;
+    if (!link_.transact(tx_.data(), n, id, timeout_ns, len)) continue;
+    const dxl::Packet& pkt_ = link_.packet();
     if ((pkt_.error & 0x7F) != 0)
       throw std::runtime_error(name(j, sensor) + ": Read of " + register_name(sensor, addr) + ", " +
                                std::to_string(len) + " bytes, answered error " +
-                               std::to_string(pkt_.error & 0x7F) + " (" + error_name(pkt_.error) +
+                               std::to_string(pkt_.error & 0x7F) + " (" + dxl::error_name(pkt_.error) +
                                "), expected its value");
     if (pkt_.param_count != len)
       throw std::runtime_error(name(j, sensor) + ": Read of " + register_name(sensor, addr) +
@@ -218,10 +167,11 @@ void XSeriesDriver::write_registers(int j, bool sensor, std::uint16_t addr,
   const auto id = static_cast<std::uint8_t>(j + 1 + (sensor ? sensor_offset_ : 0));
   std::size_t n = 0;
   dxl::build_write(id, addr, data, std::span<std::uint8_t>(tx_.data(), dxl::kMaxPacket), n);
-  if (transact(tx_.data(), n, id, 0, timeout_ns) && (pkt_.error & 0x7F) != 0)
+  const dxl::Packet& pkt_ = link_.packet();
+  if (link_.transact(tx_.data(), n, id, timeout_ns, 0) && (pkt_.error & 0x7F) != 0)
     throw std::runtime_error(name(j, sensor) + ": Write of " + register_name(sensor, addr) +
                              " answered error " + std::to_string(pkt_.error & 0x7F) + " (" +
-                             error_name(pkt_.error) + "), expected 0");
+                             dxl::error_name(pkt_.error) + "), expected 0");
   const std::vector<std::uint8_t> back =
       read_registers(j, sensor, addr, static_cast<std::uint16_t>(data.size()), timeout_ns);
   for (std::size_t k = 0; k < data.size(); ++k) {
@@ -246,9 +196,9 @@ void XSeriesDriver::configure(std::int64_t reply_timeout_ns) {
                                " = " + std::to_string(id) + ", expected " + std::to_string(want_id));
     if (baud != want_baud)
       throw std::runtime_error(name(j, sensor) + ": " + register_name(sensor, dxl::x::kRegBaud) +
-                               " = " + std::to_string(baud) + " (" + baud_text(baud) +
+                               " = " + std::to_string(baud) + " (" + dxl::baud_text(baud) +
                                "), expected " + std::to_string(want_baud) + " (" +
-                               baud_text(want_baud) + ", driver.baud)");
+                               dxl::baud_text(want_baud) + ", driver.baud)");
   };
   auto check_hw = [&](int j, bool sensor) {
     const std::uint8_t hw =
@@ -317,29 +267,10 @@ void XSeriesDriver::configure(std::int64_t reply_timeout_ns) {
     check_hw(j, true);
     write_registers(j, true, dxl::x::kRegReturnDelay, {return_delay_steps_}, reply_timeout_ns);
   }
-  rx_len_ = 0;
+  link_.clear();
 }
 
 // ---- Cycle -----------------------------------------------------------------------------------------
-bool XSeriesDriver::write_all(const std::uint8_t* p, std::size_t n, std::int64_t until_ns) noexcept {
-  std::size_t done = 0;
-  while (done < n) {
-    const ssize_t r = ::write(fd_, p + done, n - done);
-    if (r > 0) {
-      done += static_cast<std::size_t>(r);
-      continue;
-    }
-    if (r < 0 && errno == EINTR) continue;
-    if (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK) return false;
-    const std::int64_t remaining = until_ns - detail::monotonic_ns();
-    if (remaining <= 0) return false;
-    pollfd pf{fd_, POLLOUT, 0};
-    const timespec ts = detail::to_timespec(remaining);
-    if (::ppoll(&pf, 1, &ts, nullptr) <= 0) return false;
-  }
-  return true;
-}
-
 XSeriesDriver::Dev XSeriesDriver::device_of(std::uint8_t id, int& j) const noexcept {
   if (id >= 1 && id <= joints_) {
     j = id - 1;
@@ -352,51 +283,13 @@ XSeriesDriver::Dev XSeriesDriver::device_of(std::uint8_t id, int& j) const noexc
   return Dev::kNone;
 }
 
-void XSeriesDriver::receive(std::int64_t stamp_ns, bool before_request) noexcept {
-  bool got = false;
-  for (;;) {
-    if (rx_len_ == rx_.size()) {
-      ++counters_.malformed;
-      rx_len_ = 0;
-    }
-    const ssize_t r = ::read(fd_, rx_.data() + rx_len_, rx_.size() - rx_len_);
-    if (r > 0) {
-      rx_len_ += static_cast<std::size_t>(r);
-      got = true;
-      continue;
-    }
-    if (r < 0 && errno == EINTR) continue;
-    break;
+void XSeriesDriver::on_packet(dxl::DxlStatus s, const dxl::Packet& p, std::int64_t stamp_ns) noexcept {
+  if (s == dxl::DxlStatus::kOk) {
+    handle_status(p, stamp_ns, before_request_);
+    return;
   }
-  if (got) silence_.on_rx(stamp_ns, counters_);
-  std::size_t pos = 0;
-  while (pos < rx_len_) {
-    std::size_t used = 0;
-    const dxl::DxlStatus s = dxl::parse_packet(
-        std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
-    if (s == dxl::DxlStatus::kNeedMore) break;
-    pos += used;
-    if (s == dxl::DxlStatus::kGarbage) {
-      if (!garbage_run_) ++counters_.malformed;
-      garbage_run_ = true;
-      continue;
-    }
-    garbage_run_ = false;
-    ++counters_.frames_rx;
-    if (s == dxl::DxlStatus::kOk) {
-      handle_status(pkt_, stamp_ns, before_request);
-    } else if (s == dxl::DxlStatus::kChecksum) {
-      ++counters_.checksum;
-      int j = 0;
-      if (device_of(pkt_.id, j) != Dev::kNone) status_[static_cast<std::size_t>(j)] |= kStatusChecksum;
-    } else {
-      ++counters_.malformed;
-    }
-  }
-  if (pos > 0) {
-    std::memmove(rx_.data(), rx_.data() + pos, rx_len_ - pos);
-    rx_len_ -= pos;
-  }
+  int j = 0;  // a CRC failure: flag its joint if the ID is one of ours
+  if (device_of(p.id, j) != Dev::kNone) status_[static_cast<std::size_t>(j)] |= kStatusChecksum;
 }
 
 void XSeriesDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns,
@@ -478,12 +371,10 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   deadline_ns_ = deadline_ns;
 
   // 1. What is already here answers older Bulk Reads. A packet still incomplete is a short read.
-  receive(detail::monotonic_ns(), true);
-  if (rx_len_ > 0) {
-    ++counters_.malformed;
-    rx_len_ = 0;
-    garbage_run_ = false;
-  }
+  before_request_ = true;
+  link_.receive(detail::monotonic_ns(), counters_, *this);
+  link_.drop_partial(counters_);
+  before_request_ = false;
 
   // 2. The Bulk Read: every servo and sensor samples when it has arrived.
   const std::int64_t t0 = detail::monotonic_ns();
@@ -493,7 +384,7 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   sample_ns_ = t0 + bulk_wire_ns_;
   sample_applied_seq_ = applied_seq_;
   sample_applied_ns_ = applied_ns_;
-  const bool sent = write_all(bulk_tx_.data(), bulk_len_, deadline_ns);
+  const bool sent = link_.write_all(bulk_tx_.data(), bulk_len_, deadline_ns);
   // Nothing samples before the request has been handed to the kernel: a host preempted between
   // its clock read and the write (a loaded machine: milliseconds) put the sample that much early,
   // and the observer's consistency check saw c ≈ that time × β̇ (0.013 rad over an overrun).
@@ -505,20 +396,7 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   }
 
   // 3. Gather the 2J status packets until the deadline.
-  const int want = 2 * joints_;
-  while (sent && fresh_packets_ < want) {
-    const std::int64_t remaining = deadline_ns - detail::monotonic_ns();
-    if (remaining <= 0) break;
-    pollfd pf{fd_, POLLIN, 0};
-    const timespec ts = detail::to_timespec(remaining);
-    const int r = ::ppoll(&pf, 1, &ts, nullptr);
-    if (r < 0 && errno != EINTR) break;
-    if (r > 0) {
-      if (pf.revents & (POLLERR | POLLNVAL)) break;
-      receive(detail::monotonic_ns(), false);
-      if ((pf.revents & POLLHUP) && !(pf.revents & POLLIN)) break;
-    }
-  }
+  if (sent) link_.gather(deadline_ns, counters_, *this, fresh_packets_, 2 * joints_);
 
   out.joints = joints_;
   out.seq = cycle_;
@@ -634,7 +512,7 @@ bool XSeriesDriver::send(const Command* cmd, std::int64_t until_ns) noexcept {
     n += m;
   }
   const std::int64_t t0 = detail::monotonic_ns();
-  if (!write_all(tx_.data(), n, until_ns)) {
+  if (!link_.write_all(tx_.data(), n, until_ns)) {
     ++counters_.tx_dropped;
     return false;
   }

@@ -37,6 +37,7 @@
 #include <string>
 #include <vector>
 
+#include "pedalwave/drivers/dxl_link.hpp"
 #include "pedalwave/drivers/dynamixel.hpp"
 #include "pedalwave/drivers/io.hpp"
 #include "pedalwave/drivers/serial_driver.hpp"
@@ -58,7 +59,7 @@ struct XSeriesIdentity {
 const char* xseries_model_name(std::uint16_t model) noexcept;
 double xseries_current_lsb(std::uint16_t model) noexcept;
 
-class XSeriesDriver final : public Driver {
+class XSeriesDriver final : public Driver, private DxlPacketSink {
  public:
   // Takes ownership of fd (a tty or pty slave in raw mode). Checks cfg (joints, sensor IDs clear
   // of the servos' and ≤ 252, torque constant > 0, return delay 0 … 508 µs) and the X-series bus
@@ -87,12 +88,10 @@ class XSeriesDriver final : public Driver {
   enum class Dev : std::uint8_t { kNone, kServo, kSensor };
   Dev device_of(std::uint8_t id, int& j) const noexcept;
   std::string name(int j, bool sensor) const;
-  bool write_all(const std::uint8_t* p, std::size_t n, std::int64_t until_ns) noexcept;
-  void receive(std::int64_t stamp_ns, bool before_request) noexcept;
+  // A packet from the link (DxlPacketSink): an answer classified by when it came (before_request_).
+  void on_packet(dxl::DxlStatus s, const dxl::Packet& p, std::int64_t stamp_ns) noexcept override;
   void handle_status(const dxl::Packet& p, std::int64_t stamp_ns, bool before_request) noexcept;
   bool send(const Command* cmd, std::int64_t until_ns) noexcept;
-  bool transact(const std::uint8_t* p, std::size_t n, std::uint8_t id, std::size_t params,
-                std::int64_t timeout_ns);
   std::vector<std::uint8_t> read_registers(int j, bool sensor, std::uint16_t addr,
                                            std::uint16_t len, std::int64_t timeout_ns);
   void write_registers(int j, bool sensor, std::uint16_t addr,
@@ -113,12 +112,12 @@ class XSeriesDriver final : public Driver {
   std::array<double, kMaxJoints> lsb_{};           // Goal Current LSB per servo [A]
 
   DriverCounters counters_{};
-  SilenceMeter silence_;
+  DxlLink link_;                     // the byte stream (shared with the pedalwave modules' driver)
+  bool before_request_ = false;      // receiving what waited before this cycle's Bulk Read
   std::uint64_t cycle_ = 0;
   std::int64_t deadline_ns_ = 0;
   std::int64_t sample_ns_ = 0;       // this cycle's sample time (Bulk Read arrival) [ns]
   std::int64_t stamp_ns_ = 0;        // newest fresh reception this cycle [ns]
-  bool garbage_run_ = false;
   int fresh_packets_ = 0;            // status packets of this cycle's Bulk Read received [-]
   std::array<bool, kMaxJoints> got_servo_{}, got_sensor_{};
   std::array<dxl::x::ServoFeedback, kMaxJoints> servo_{};   // this cycle's
@@ -152,12 +151,9 @@ class XSeriesDriver final : public Driver {
   std::size_t bulk_len_ = 0;
   std::int64_t bulk_wire_ns_ = 0;
   std::int64_t min_reply_ns_ = 0;  // wire time of the shortest status packet [ns]
-  std::array<std::uint8_t, 4096> rx_{};
-  std::size_t rx_len_ = 0;
   std::array<std::uint8_t, 3 * dxl::kMaxPacket> tx_{};
   std::array<std::uint8_t, kMaxJoints * 2> data_{};
   std::array<std::uint8_t, kMaxJoints> sel_ids_{};
-  dxl::Packet pkt_{};
 };
 
 }  // namespace pedalwave::drivers

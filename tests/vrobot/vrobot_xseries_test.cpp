@@ -266,3 +266,25 @@ INSTANTIATE_TEST_SUITE_P(
     [](const ::testing::TestParamInfo<XFault>& i) {
       return std::string(model::to_string(i.param.type)) + "_" + std::to_string(i.index);
     });
+
+// The host's PD on lost samples: a servo and its sensor stop answering (the emulator drops their
+// answers from Bulk Read 1000, 2 s in). The driver holds the joint's last sample for at most
+// max_stale_cycles (8) cycles; beyond, stale_feedback on that joint ends the walk (safe stop),
+// long before the bus's module_silent (0.2 s) or the runtime's stale_timeout (0.25 s).
+TEST(XSeriesWalk, AServoThatStopsAnsweringIsStaleFeedbackOnItsJoint) {
+  const int joint = 3;  // joint 4 (1-based)
+  drivers::FaultConfig f;
+  f.module[joint].silent = true;
+  f.onset_sync = 1000;
+  const test::WalkResult r = walk_xseries(scene(), 4.0, true, {}, f);
+  print_counters("silent servo", r);
+  std::printf("[vrobot] %s\n", r.daemon.exit_line.c_str());
+  EXPECT_EQ(r.daemon.run.reason, runtime::ExitReason::kFault);
+  EXPECT_EQ(r.daemon.run.fault, runtime::FaultClass::kStaleFeedback) << runtime::to_string(r.daemon.run.fault);
+  EXPECT_EQ(r.daemon.run.fault_joint, joint);
+  // Bulk Read 1000 is cycle 1000: the sample of cycle 999 is 9 cycles old at cycle 1008.
+  EXPECT_GE(r.daemon.run.cycles, 1008u);
+  EXPECT_LE(r.daemon.run.cycles, 1010u) << "named within a cycle or two of the limit";
+  EXPECT_GE(r.counters.held_age_max, 9u);
+  EXPECT_TRUE(r.all_modules_off) << "safe stop: Torque Enable 0 reached every servo";
+}

@@ -26,9 +26,14 @@
 // and Torque Enable 0 on every servo.
 // Timing (Feedback::timing = kModule, times from the host's clock, PROTOCOL.md §3.6): a stock
 // servo has no sync counter and no module clock in the pedalwave sense; it samples when the Bulk
-// Read has arrived: sample_ns = the Bulk Read's send time + its wire time. The command acts on
-// arrival of the Sync Write: applied_ns = its send time + its wire time, applied_seq = the
-// Command::seq of the last write() that went out before the sample.
+// Read has arrived: sample_ns = the Bulk Read's send time + its wire time, no earlier than its
+// write() returned. The command acts on arrival of the Sync Write: applied_ns = its send time +
+// its wire time (no earlier than the write's return), applied_seq = the Command::seq of the last
+// write() that went out before the sample.
+// Held samples: a joint without a fresh answer keeps its last sample (age counted in cycles:
+// DriverCounters::held, held_age_max); older than max_stale_cycles it is flagged
+// kStatusStaleFeedback and write() gives its servo Goal Current 0 (the host's PD is blind).
+// feedback_spec() declares the servos' and sensors' resolution for the observer's thresholds.
 // read()/write()/safe_stop() never allocate, lock, throw or block past their deadline.
 #pragma once
 

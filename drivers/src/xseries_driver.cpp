@@ -407,28 +407,27 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
     const auto ju = static_cast<std::size_t>(j);
     std::uint16_t st = status_[ju];
     out.late_applied_ns[ju] = 0;
-    if (got_servo_[ju] && got_sensor_[ju]) {
-      beta_[ju] = servo_[ju].position;
-      beta_dot_[ju] = servo_[ju].velocity;
-      deflection_[ju] = sensor_[ju];
+    // Hand out a sample: the servo's and sensor's values, when they were sampled, and the command
+    // in effect then (age: cycles since that Bulk Read).
+    const auto hand_out = [&](const dxl::x::ServoFeedback& sv, double defl, std::int64_t at,
+                              std::uint64_t seq, const std::array<std::int64_t, kMaxJoints>& when,
+                              std::uint64_t age) {
+      beta_[ju] = sv.position;
+      beta_dot_[ju] = sv.velocity;
+      deflection_[ju] = defl;
       have_sample_[ju] = true;
-      out.sample_ns[ju] = sample_ns_;
-      out.applied_seq[ju] = applied_seq_;
-      out.applied_ns[ju] = applied_seq_ == kNoCommandSeq ? 0 : applied_ns_[ju];
-      handed_ns_[ju] = sample_ns_;
-      age_[ju] = 0;
+      out.sample_ns[ju] = at;
+      out.applied_seq[ju] = seq;
+      out.applied_ns[ju] = seq == kNoCommandSeq ? 0 : when[ju];
+      handed_ns_[ju] = at;
+      age_[ju] = age;
+    };
+    if (got_servo_[ju] && got_sensor_[ju]) {
+      hand_out(servo_[ju], sensor_[ju], sample_ns_, applied_seq_, applied_ns_, 0);
       ++fresh;
     } else if (late_servo_got_[ju] && late_sensor_got_[ju] && prev_sample_ns_ > handed_ns_[ju]) {
       // No fresh answer, but the previous Bulk Read's came late: an older sample, at its time.
-      beta_[ju] = late_servo_[ju].position;
-      beta_dot_[ju] = late_servo_[ju].velocity;
-      deflection_[ju] = late_sensor_[ju];
-      have_sample_[ju] = true;
-      out.sample_ns[ju] = prev_sample_ns_;
-      out.applied_seq[ju] = prev_applied_seq_;
-      out.applied_ns[ju] = prev_applied_seq_ == kNoCommandSeq ? 0 : prev_applied_ns_[ju];
-      handed_ns_[ju] = prev_sample_ns_;
-      age_[ju] = 1;
+      hand_out(late_servo_[ju], late_sensor_[ju], prev_sample_ns_, prev_applied_seq_, prev_applied_ns_, 1);
       ++counters_.late_used;
       ++late_used;
     } else {

@@ -10,6 +10,7 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -351,7 +352,11 @@ TEST(XSeriesDriver, LateAnswersAreThePreviousSampleAtItsTime) {
     pedalwave::test::sleep_until(t0);
   }
   const pd::DriverCounters c = rig.drv->counters();
-  // A loaded machine may deliver some answers later still (then missing); most are used.
+  std::printf("[xseries] late answers used as the sample: %d of %d joint-cycles\n", late_samples,
+              cycles * joints);
+  // A loaded machine may deliver some answers later still (then missing); most are used:
+  // measured 110 and 118 of 120 at load 5 (Release). A quarter leaves room for the sanitizers'
+  // slowdown under load (not measured this round); a broken late path uses none.
   EXPECT_GE(late_samples, cycles * joints / 4);
   EXPECT_EQ(at_previous_time, late_samples);
   EXPECT_GE(c.late_used, static_cast<std::uint64_t>(late_samples));

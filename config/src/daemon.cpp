@@ -113,6 +113,7 @@ constexpr DriverKey kDriverKeys[] = {
     {"torque_constant", "the serial driver's", false, false, true},     // devices: x_series only
     {"sensor_id_offset", "the serial driver's", false, false, true},    // devices: x_series only
     {"set_operating_mode", "the serial driver's", false, false, true},  // devices: x_series only
+    {"max_stale_cycles", "the serial driver's", false, false, true},    // devices: x_series only
 };
 
 // `type` and every key above: what `driver:` may hold.
@@ -231,7 +232,7 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
     // deflection sensor each (drivers/PROTOCOL.md §3.6).
     const bool x = r.choice("devices", "pedalwave", {"pedalwave", "x_series"}) == "x_series";
     d.serial.devices = x ? drivers::SerialDevices::kXSeries : drivers::SerialDevices::kPedalwave;
-    for (const char* key : {"torque_constant", "sensor_id_offset", "set_operating_mode"})
+    for (const char* key : {"torque_constant", "sensor_id_offset", "set_operating_mode", "max_stale_cycles"})
       if (!x && r.has(key))
         r[key].fail(std::string("no ") + key + " without devices: x_series (" + key +
                     " is the stock X-series servos')");
@@ -247,6 +248,7 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
       d.serial.sensor_id_offset = static_cast<int>(
           r.integer("sensor_id_offset", 100, std::max(joints, 1), std::max(252 - joints, 1)));
       d.serial.set_operating_mode = r.boolean("set_operating_mode", true);
+      d.serial.max_stale_cycles = static_cast<int>(r.integer("max_stale_cycles", 8, 1, 1000));
     }
     checked(r, "driver", [&] {
       drivers::SerialBusSpec spec{d.serial.joints, d.serial.period_s, d.serial.baud,

@@ -174,6 +174,24 @@ int baud_index(int baud) noexcept {
   return -1;
 }
 
+const char* error_name(std::uint8_t error) noexcept {
+  switch (error & 0x7F) {
+    case kErrResultFail: return "Result Fail";
+    case kErrInstruction: return "Instruction Error";
+    case kErrCrc: return "CRC Error";
+    case kErrDataRange: return "Data Range Error";
+    case kErrDataLength: return "Data Length Error";
+    case kErrDataLimit: return "Data Limit Error";
+    case kErrAccess: return "Access Error";
+    default: return "unknown error";
+  }
+}
+
+std::string baud_text(int index) {
+  const int b = baud_of_index(index);
+  return b > 0 ? std::to_string(b) + " baud" : "no rate of the index";
+}
+
 int baud_of_index(int index) noexcept {
   constexpr int kBaud[] = {9600, 57600, 115200, 1'000'000, 2'000'000, 3'000'000, 4'000'000};
   return index >= 0 && index <= 6 ? kBaud[index] : 0;

@@ -103,6 +103,7 @@ std::unique_ptr<SerialDriver> SerialDriver::open(const SerialConfig& cfg) {
 
 SerialDriver::SerialDriver(int fd, const SerialConfig& cfg)
     : fd_(fd), joints_(cfg.joints), write_timeout_ns_(cfg.write_timeout_ns) {
+  link_.attach(fd);
   baud_ = cfg.baud;
   if (cfg.devices == SerialDevices::kXSeries) {  // stock servos + sensors: another driver
     fd_ = -1;
@@ -147,18 +148,6 @@ SerialDriver::SerialDriver(int fd, const SerialConfig& cfg)
 
 // ---- Configuration -------------------------------------------------------------------------------
 namespace {
-const char* error_name(std::uint8_t e) {
-  switch (e & 0x7F) {
-    case dxl::kErrResultFail: return "Result Fail";
-    case dxl::kErrInstruction: return "Instruction Error";
-    case dxl::kErrCrc: return "CRC Error";
-    case dxl::kErrDataRange: return "Data Range Error";
-    case dxl::kErrDataLength: return "Data Length Error";
-    case dxl::kErrDataLimit: return "Data Limit Error";
-    case dxl::kErrAccess: return "Access Error";
-    default: return "unknown error";
-  }
-}
 std::string module_name(int j) {
   return "serial bus: module ID " + std::to_string(j + 1) + " (joint " + std::to_string(j + 1) + ")";
 }
@@ -166,46 +155,7 @@ std::string register_name(std::uint16_t addr) {
   const dxl::Register* r = dxl::register_at(addr);
   return "register " + std::to_string(addr) + " (" + (r ? r->name : "?") + ")";
 }
-std::string baud_text(int index) {
-  const int b = dxl::baud_of_index(index);
-  return b > 0 ? std::to_string(b) + " baud" : "no rate of the index";
-}
 }  // namespace
-
-bool SerialDriver::transact(const std::uint8_t* p, std::size_t n, std::uint8_t id,
-                            std::int64_t timeout_ns) {
-  // Whatever waits on the line is no answer to this request.
-  std::uint8_t junk[256];
-  while (::read(fd_, junk, sizeof junk) > 0) {
-  }
-  rx_len_ = 0;
-  const std::int64_t until = detail::monotonic_ns() + timeout_ns;
-  if (!write_all(p, n, until)) return false;
-  for (;;) {
-    std::size_t pos = 0;
-    while (pos < rx_len_) {
-      std::size_t used = 0;
-      const dxl::DxlStatus s = dxl::parse_packet(
-          std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
-      if (s == dxl::DxlStatus::kNeedMore) break;
-      pos += used;
-      if (s == dxl::DxlStatus::kOk && pkt_.instruction == dxl::kInstStatus && pkt_.id == id) {
-        rx_len_ = 0;
-        return true;
-      }
-    }
-    std::memmove(rx_.data(), rx_.data() + pos, rx_len_ - pos);
-    rx_len_ -= pos;
-    const std::int64_t left = until - detail::monotonic_ns();
-    if (left <= 0) return false;
-    pollfd pf{fd_, POLLIN, 0};
-    const timespec ts = detail::to_timespec(left);
-    if (::ppoll(&pf, 1, &ts, nullptr) > 0) {
-      const ssize_t r = ::read(fd_, rx_.data() + rx_len_, rx_.size() - rx_len_);
-      if (r > 0) rx_len_ += static_cast<std::size_t>(r);
-    }
-  }
-}
 
 std::vector<std::uint8_t> SerialDriver::read_registers(int j, std::uint16_t addr, std::uint16_t len,
                                                        std::int64_t timeout_ns) {
@@ -213,11 +163,12 @@ std::vector<std::uint8_t> SerialDriver::read_registers(int j, std::uint16_t addr
   std::size_t n = 0;
   dxl::build_read(id, addr, len, tx_, n);
   for (int attempt = 0; attempt < 3; ++attempt) {
-    if (!transact(tx_.data(), n, id, timeout_ns)) continue;
+    if (!link_.transact(tx_.data(), n, id, timeout_ns)) continue;
+    const dxl::Packet& pkt_ = link_.packet();
     if ((pkt_.error & 0x7F) != 0)
       throw std::runtime_error(module_name(j) + ": Read of " + register_name(addr) + ", " +
                                std::to_string(len) + " bytes, answered error " +
-                               std::to_string(pkt_.error & 0x7F) + " (" + error_name(pkt_.error) +
+                               std::to_string(pkt_.error & 0x7F) + " (" + dxl::error_name(pkt_.error) +
                                "), expected its value");
     if (pkt_.param_count != len)
       throw std::runtime_error(module_name(j) + ": Read of " + register_name(addr) + " answered " +
@@ -238,10 +189,11 @@ void SerialDriver::write_registers(int j, std::uint16_t addr, const std::vector<
   std::size_t n = 0;
   dxl::build_write(id, addr, data, tx_, n);
   // At status return level 2 the Write is answered; below it, the read back below decides.
-  if (transact(tx_.data(), n, id, timeout_ns) && (pkt_.error & 0x7F) != 0)
+  const dxl::Packet& pkt_ = link_.packet();
+  if (link_.transact(tx_.data(), n, id, timeout_ns) && (pkt_.error & 0x7F) != 0)
     throw std::runtime_error(module_name(j) + ": Write of " + register_name(addr) +
                              " answered error " + std::to_string(pkt_.error & 0x7F) + " (" +
-                             error_name(pkt_.error) + "), expected 0");
+                             dxl::error_name(pkt_.error) + "), expected 0");
   const std::vector<std::uint8_t> back =
       read_registers(j, addr, static_cast<std::uint16_t>(data.size()), timeout_ns);
   for (std::size_t k = 0; k < data.size(); ++k) {
@@ -258,6 +210,16 @@ const ModuleIdentity& SerialDriver::identity(int j) const {
 }
 
 const DriverCounters& SerialDriver::counters() const { return x_ ? x_->counters() : counters_; }
+
+FeedbackSpec SerialDriver::feedback_spec() const {
+  if (x_) return x_->feedback_spec();
+  FeedbackSpec f;
+  f.beta_lsb = wire::kBetaLsb;
+  f.beta_dot_lsb = wire::kBetaDotLsb;
+  f.deflection_lsb = wire::kDeflectionLsb;
+  f.torque_lsb = wire::kTauLsb;
+  return f;
+}
 
 void SerialDriver::configure_modules(std::int64_t reply_timeout_ns) {
   if (x_) {
@@ -286,9 +248,9 @@ void SerialDriver::configure_modules(std::int64_t reply_timeout_ns) {
                                std::to_string(eeprom[0]) + ", expected " + std::to_string(j + 1));
     if (eeprom[1] != want_baud)
       throw std::runtime_error(module_name(j) + ": " + register_name(dxl::kRegBaud) + " = " +
-                               std::to_string(eeprom[1]) + " (" + baud_text(eeprom[1]) +
+                               std::to_string(eeprom[1]) + " (" + dxl::baud_text(eeprom[1]) +
                                "), expected " + std::to_string(want_baud) + " (" +
-                               baud_text(want_baud) + ", driver.baud)");
+                               dxl::baud_text(want_baud) + ", driver.baud)");
     // 3. No hardware error (register 70).
     const std::uint8_t hw = read_registers(j, dxl::kRegHardwareError, 1, reply_timeout_ns)[0];
     if (hw != 0)
@@ -305,81 +267,20 @@ void SerialDriver::configure_modules(std::int64_t reply_timeout_ns) {
                      static_cast<std::uint8_t>(command_timeout_ms_ >> 8)},
                     reply_timeout_ns);
   }
-  rx_len_ = 0;
+  link_.clear();
 }
 
 SerialDriver::~SerialDriver() {
   if (fd_ >= 0) ::close(fd_);
 }
 
-bool SerialDriver::write_all(const std::uint8_t* p, std::size_t n, std::int64_t until_ns) noexcept {
-  std::size_t done = 0;
-  while (done < n) {
-    const ssize_t r = ::write(fd_, p + done, n - done);
-    if (r > 0) {
-      done += static_cast<std::size_t>(r);
-      continue;
-    }
-    if (r < 0 && errno == EINTR) continue;
-    if (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK) return false;
-    const std::int64_t remaining = until_ns - detail::monotonic_ns();
-    if (remaining <= 0) return false;
-    pollfd pf{fd_, POLLOUT, 0};
-    const timespec ts = detail::to_timespec(remaining);
-    if (::ppoll(&pf, 1, &ts, nullptr) <= 0) return false;
+void SerialDriver::on_packet(dxl::DxlStatus s, const dxl::Packet& p, std::int64_t stamp_ns) noexcept {
+  if (s == dxl::DxlStatus::kOk) {
+    handle_status(p, stamp_ns);
+    return;
   }
-  return true;
-}
-
-void SerialDriver::receive(std::int64_t stamp_ns) noexcept {
-  bool got = false;
-  for (;;) {
-    if (rx_len_ == rx_.size()) {  // cannot happen with sane packets: drop and resynchronize
-      ++counters_.malformed;
-      rx_len_ = 0;
-    }
-    const ssize_t r = ::read(fd_, rx_.data() + rx_len_, rx_.size() - rx_len_);
-    if (r > 0) {
-      rx_len_ += static_cast<std::size_t>(r);
-      got = true;
-      continue;
-    }
-    if (r < 0 && errno == EINTR) continue;
-    break;
-  }
-  if (got) silence_.on_rx(stamp_ns, counters_);
-  parse(stamp_ns);
-}
-
-void SerialDriver::parse(std::int64_t stamp_ns) noexcept {
-  std::size_t pos = 0;
-  while (pos < rx_len_) {
-    std::size_t used = 0;
-    const dxl::DxlStatus s =
-        dxl::parse_packet(std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
-    if (s == dxl::DxlStatus::kNeedMore) break;
-    pos += used;
-    if (s == dxl::DxlStatus::kGarbage) {
-      if (!garbage_run_) ++counters_.malformed;  // one count per run of stray bytes
-      garbage_run_ = true;
-      continue;
-    }
-    garbage_run_ = false;
-    ++counters_.frames_rx;
-    if (s == dxl::DxlStatus::kOk) {
-      handle_status(pkt_, stamp_ns);
-    } else if (s == dxl::DxlStatus::kChecksum) {
-      ++counters_.checksum;
-      const int j = pkt_.id - 1;
-      if (j >= 0 && j < joints_) status_[static_cast<std::size_t>(j)] |= kStatusChecksum;
-    } else {
-      ++counters_.malformed;
-    }
-  }
-  if (pos > 0) {
-    std::memmove(rx_.data(), rx_.data() + pos, rx_len_ - pos);
-    rx_len_ -= pos;
-  }
+  const int j = p.id - 1;  // a CRC failure: flag its joint if the ID is one of ours
+  if (j >= 0 && j < joints_) status_[static_cast<std::size_t>(j)] |= kStatusChecksum;
 }
 
 void SerialDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns) noexcept {
@@ -464,12 +365,8 @@ IoStatus SerialDriver::read(std::int64_t now_ns, std::int64_t deadline_ns, Feedb
   poll_overruns();
 
   // 1. What is already here answers older cycles. A packet still incomplete is a short read.
-  receive(detail::monotonic_ns());
-  if (rx_len_ > 0) {
-    ++counters_.malformed;
-    rx_len_ = 0;
-    garbage_run_ = false;
-  }
+  link_.receive(detail::monotonic_ns(), counters_, *this);
+  link_.drop_partial(counters_);
 
   // 2. SYNC (broadcast write of c to the sync-counter register) + Sync Read, in one write.
   const std::uint8_t reg[3] = {static_cast<std::uint8_t>(dxl::kRegSyncCounter & 0xFF),
@@ -481,7 +378,7 @@ IoStatus SerialDriver::read(std::int64_t now_ns, std::int64_t deadline_ns, Feedb
   std::memmove(sync_tx_.data() + n, sync_tx_.data() + 16, sync_read_len_);
   sync_lower_ns_ = detail::monotonic_ns() + sync_wire_ns_;
   log_.sync(cycle_, sync_lower_ns_);
-  const bool sent = write_all(sync_tx_.data(), n + sync_read_len_, deadline_ns);
+  const bool sent = link_.write_all(sync_tx_.data(), n + sync_read_len_, deadline_ns);
   std::memmove(sync_tx_.data() + 16, sync_tx_.data() + n, sync_read_len_);
   if (sent) {
     counters_.frames_tx += 2;
@@ -490,19 +387,7 @@ IoStatus SerialDriver::read(std::int64_t now_ns, std::int64_t deadline_ns, Feedb
   }
 
   // 3. Gather the status packets until all are fresh or the deadline passes.
-  while (sent && fresh_count_ < joints_) {
-    const std::int64_t remaining = deadline_ns - detail::monotonic_ns();
-    if (remaining <= 0) break;
-    pollfd pf{fd_, POLLIN, 0};
-    const timespec ts = detail::to_timespec(remaining);
-    const int r = ::ppoll(&pf, 1, &ts, nullptr);
-    if (r < 0 && errno != EINTR) break;
-    if (r > 0) {
-      if (pf.revents & (POLLERR | POLLNVAL)) break;
-      receive(detail::monotonic_ns());
-      if ((pf.revents & POLLHUP) && !(pf.revents & POLLIN)) break;  // far end gone
-    }
-  }
+  if (sent) link_.gather(deadline_ns, counters_, *this, fresh_count_, joints_);
 
   out.joints = joints_;
   out.seq = cycle_;
@@ -576,7 +461,7 @@ bool SerialDriver::send_commands(const Command* cmd, bool all_off, std::int64_t 
                             std::span<const std::uint8_t>(blocks_.data(), count * dxl::kCommandBlockSize),
                             tx_, n) != dxl::DxlStatus::kOk)
     return false;
-  if (!write_all(tx_.data(), n, until_ns)) {
+  if (!link_.write_all(tx_.data(), n, until_ns)) {
     ++counters_.tx_dropped;
     return false;
   }

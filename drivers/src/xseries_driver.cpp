@@ -3,6 +3,7 @@
 #include <poll.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -28,28 +29,12 @@ double xseries_current_lsb(std::uint16_t model) noexcept {
 }
 
 namespace {
-const char* error_name(std::uint8_t e) {
-  switch (e & 0x7F) {
-    case dxl::kErrResultFail: return "Result Fail";
-    case dxl::kErrInstruction: return "Instruction Error";
-    case dxl::kErrCrc: return "CRC Error";
-    case dxl::kErrDataRange: return "Data Range Error";
-    case dxl::kErrDataLength: return "Data Length Error";
-    case dxl::kErrDataLimit: return "Data Limit Error";
-    case dxl::kErrAccess: return "Access Error";
-    default: return "unknown error";
-  }
-}
 std::string register_name(bool sensor, std::uint16_t addr) {
   const dxl::Register* r = dxl::register_at(
       sensor ? std::span<const dxl::Register>(dxl::x::kSensorRegisters)
              : std::span<const dxl::Register>(dxl::x::kRegisters),
       addr);
   return "register " + std::to_string(addr) + " (" + (r ? r->name : "?") + ")";
-}
-std::string baud_text(int index) {
-  const int b = dxl::baud_of_index(index);
-  return b > 0 ? std::to_string(b) + " baud" : "no rate of the index";
 }
 std::string hw_error_text(std::uint8_t hw) {
   std::string s;
@@ -64,7 +49,8 @@ std::string hw_error_text(std::uint8_t hw) {
 XSeriesDriver::XSeriesDriver(int fd, const SerialConfig& cfg)
     : fd_(fd), joints_(cfg.joints), baud_(cfg.baud), sensor_offset_(cfg.sensor_id_offset),
       k_t_(cfg.torque_constant), set_mode_(cfg.set_operating_mode),
-      write_timeout_ns_(cfg.write_timeout_ns) {
+      stale_limit_(cfg.max_stale_cycles), write_timeout_ns_(cfg.write_timeout_ns) {
+  link_.attach(fd);
   try {
     if (fd < 0)
       throw std::invalid_argument("X-series driver: fd = " + std::to_string(fd) +
@@ -81,6 +67,10 @@ XSeriesDriver::XSeriesDriver(int fd, const SerialConfig& cfg)
     if (!(k_t_ > 0) || !std::isfinite(k_t_))
       throw std::invalid_argument("X-series driver: torque_constant = " + std::to_string(k_t_) +
                                   " N·m/A, expected > 0 (XM430-W350 at 12 V: 1.78)");
+    if (stale_limit_ < 1 || stale_limit_ > 1000)
+      throw std::invalid_argument("X-series driver: max_stale_cycles = " + std::to_string(stale_limit_) +
+                                  ", expected 1 … 1000 cycles (how old a sample the host's PD may "
+                                  "act on)");
     const double steps = std::round(cfg.return_delay_s / 2e-6);
     if (!(steps >= 0 && steps <= 254))
       throw std::invalid_argument("X-series driver: return_delay = " +
@@ -145,54 +135,18 @@ std::string XSeriesDriver::name(int j, bool sensor) const {
 }
 
 // ---- Configuration -------------------------------------------------------------------------------
-bool XSeriesDriver::transact(const std::uint8_t* p, std::size_t n, std::uint8_t id,
-                             std::size_t params, std::int64_t timeout_ns) {
-  std::uint8_t junk[256];
-  while (::read(fd_, junk, sizeof junk) > 0) {
-  }
-  rx_len_ = 0;
-  const std::int64_t until = detail::monotonic_ns() + timeout_ns;
-  if (!write_all(p, n, until)) return false;
-  for (;;) {
-    std::size_t pos = 0;
-    while (pos < rx_len_) {
-      std::size_t used = 0;
-      const dxl::DxlStatus s = dxl::parse_packet(
-          std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
-      if (s == dxl::DxlStatus::kNeedMore) break;
-      pos += used;
-      // A status packet of `id` with the expected parameter count (or an error): a late answer
-      // to an earlier try of another request has another length, and is skipped.
-      if (s == dxl::DxlStatus::kOk && pkt_.instruction == dxl::kInstStatus && pkt_.id == id &&
-          (pkt_.param_count == params || (pkt_.error & 0x7F) != 0)) {
-        rx_len_ = 0;
-        return true;
-      }
-    }
-    std::memmove(rx_.data(), rx_.data() + pos, rx_len_ - pos);
-    rx_len_ -= pos;
-    const std::int64_t left = until - detail::monotonic_ns();
-    if (left <= 0) return false;
-    pollfd pf{fd_, POLLIN, 0};
-    const timespec ts = detail::to_timespec(left);
-    if (::ppoll(&pf, 1, &ts, nullptr) > 0) {
-      const ssize_t r = ::read(fd_, rx_.data() + rx_len_, rx_.size() - rx_len_);
-      if (r > 0) rx_len_ += static_cast<std::size_t>(r);
-    }
-  }
-}
-
 std::vector<std::uint8_t> XSeriesDriver::read_registers(int j, bool sensor, std::uint16_t addr,
                                                         std::uint16_t len, std::int64_t timeout_ns) {
   const auto id = static_cast<std::uint8_t>(j + 1 + (sensor ? sensor_offset_ : 0));
   std::size_t n = 0;
   dxl::build_read(id, addr, len, std::span<std::uint8_t>(tx_.data(), dxl::kMaxPacket), n);
   for (int attempt = 0; attempt < 3; ++attempt) {
-    if (!transact(tx_.data(), n, id, len, timeout_ns)) continue;
+    if (!link_.transact(tx_.data(), n, id, timeout_ns, len)) continue;
+    const dxl::Packet& pkt_ = link_.packet();
     if ((pkt_.error & 0x7F) != 0)
       throw std::runtime_error(name(j, sensor) + ": Read of " + register_name(sensor, addr) + ", " +
                                std::to_string(len) + " bytes, answered error " +
-                               std::to_string(pkt_.error & 0x7F) + " (" + error_name(pkt_.error) +
+                               std::to_string(pkt_.error & 0x7F) + " (" + dxl::error_name(pkt_.error) +
                                "), expected its value");
     if (pkt_.param_count != len)
       throw std::runtime_error(name(j, sensor) + ": Read of " + register_name(sensor, addr) +
@@ -213,10 +167,11 @@ void XSeriesDriver::write_registers(int j, bool sensor, std::uint16_t addr,
   const auto id = static_cast<std::uint8_t>(j + 1 + (sensor ? sensor_offset_ : 0));
   std::size_t n = 0;
   dxl::build_write(id, addr, data, std::span<std::uint8_t>(tx_.data(), dxl::kMaxPacket), n);
-  if (transact(tx_.data(), n, id, 0, timeout_ns) && (pkt_.error & 0x7F) != 0)
+  const dxl::Packet& pkt_ = link_.packet();
+  if (link_.transact(tx_.data(), n, id, timeout_ns, 0) && (pkt_.error & 0x7F) != 0)
     throw std::runtime_error(name(j, sensor) + ": Write of " + register_name(sensor, addr) +
                              " answered error " + std::to_string(pkt_.error & 0x7F) + " (" +
-                             error_name(pkt_.error) + "), expected 0");
+                             dxl::error_name(pkt_.error) + "), expected 0");
   const std::vector<std::uint8_t> back =
       read_registers(j, sensor, addr, static_cast<std::uint16_t>(data.size()), timeout_ns);
   for (std::size_t k = 0; k < data.size(); ++k) {
@@ -241,9 +196,9 @@ void XSeriesDriver::configure(std::int64_t reply_timeout_ns) {
                                " = " + std::to_string(id) + ", expected " + std::to_string(want_id));
     if (baud != want_baud)
       throw std::runtime_error(name(j, sensor) + ": " + register_name(sensor, dxl::x::kRegBaud) +
-                               " = " + std::to_string(baud) + " (" + baud_text(baud) +
+                               " = " + std::to_string(baud) + " (" + dxl::baud_text(baud) +
                                "), expected " + std::to_string(want_baud) + " (" +
-                               baud_text(want_baud) + ", driver.baud)");
+                               dxl::baud_text(want_baud) + ", driver.baud)");
   };
   auto check_hw = [&](int j, bool sensor) {
     const std::uint8_t hw =
@@ -312,29 +267,10 @@ void XSeriesDriver::configure(std::int64_t reply_timeout_ns) {
     check_hw(j, true);
     write_registers(j, true, dxl::x::kRegReturnDelay, {return_delay_steps_}, reply_timeout_ns);
   }
-  rx_len_ = 0;
+  link_.clear();
 }
 
 // ---- Cycle -----------------------------------------------------------------------------------------
-bool XSeriesDriver::write_all(const std::uint8_t* p, std::size_t n, std::int64_t until_ns) noexcept {
-  std::size_t done = 0;
-  while (done < n) {
-    const ssize_t r = ::write(fd_, p + done, n - done);
-    if (r > 0) {
-      done += static_cast<std::size_t>(r);
-      continue;
-    }
-    if (r < 0 && errno == EINTR) continue;
-    if (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK) return false;
-    const std::int64_t remaining = until_ns - detail::monotonic_ns();
-    if (remaining <= 0) return false;
-    pollfd pf{fd_, POLLOUT, 0};
-    const timespec ts = detail::to_timespec(remaining);
-    if (::ppoll(&pf, 1, &ts, nullptr) <= 0) return false;
-  }
-  return true;
-}
-
 XSeriesDriver::Dev XSeriesDriver::device_of(std::uint8_t id, int& j) const noexcept {
   if (id >= 1 && id <= joints_) {
     j = id - 1;
@@ -347,51 +283,13 @@ XSeriesDriver::Dev XSeriesDriver::device_of(std::uint8_t id, int& j) const noexc
   return Dev::kNone;
 }
 
-void XSeriesDriver::receive(std::int64_t stamp_ns, bool before_request) noexcept {
-  bool got = false;
-  for (;;) {
-    if (rx_len_ == rx_.size()) {
-      ++counters_.malformed;
-      rx_len_ = 0;
-    }
-    const ssize_t r = ::read(fd_, rx_.data() + rx_len_, rx_.size() - rx_len_);
-    if (r > 0) {
-      rx_len_ += static_cast<std::size_t>(r);
-      got = true;
-      continue;
-    }
-    if (r < 0 && errno == EINTR) continue;
-    break;
+void XSeriesDriver::on_packet(dxl::DxlStatus s, const dxl::Packet& p, std::int64_t stamp_ns) noexcept {
+  if (s == dxl::DxlStatus::kOk) {
+    handle_status(p, stamp_ns, before_request_);
+    return;
   }
-  if (got) silence_.on_rx(stamp_ns, counters_);
-  std::size_t pos = 0;
-  while (pos < rx_len_) {
-    std::size_t used = 0;
-    const dxl::DxlStatus s = dxl::parse_packet(
-        std::span<const std::uint8_t>(rx_.data() + pos, rx_len_ - pos), pkt_, used);
-    if (s == dxl::DxlStatus::kNeedMore) break;
-    pos += used;
-    if (s == dxl::DxlStatus::kGarbage) {
-      if (!garbage_run_) ++counters_.malformed;
-      garbage_run_ = true;
-      continue;
-    }
-    garbage_run_ = false;
-    ++counters_.frames_rx;
-    if (s == dxl::DxlStatus::kOk) {
-      handle_status(pkt_, stamp_ns, before_request);
-    } else if (s == dxl::DxlStatus::kChecksum) {
-      ++counters_.checksum;
-      int j = 0;
-      if (device_of(pkt_.id, j) != Dev::kNone) status_[static_cast<std::size_t>(j)] |= kStatusChecksum;
-    } else {
-      ++counters_.malformed;
-    }
-  }
-  if (pos > 0) {
-    std::memmove(rx_.data(), rx_.data() + pos, rx_len_ - pos);
-    rx_len_ -= pos;
-  }
+  int j = 0;  // a CRC failure: flag its joint if the ID is one of ours
+  if (device_of(p.id, j) != Dev::kNone) status_[static_cast<std::size_t>(j)] |= kStatusChecksum;
 }
 
 void XSeriesDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns,
@@ -473,12 +371,10 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   deadline_ns_ = deadline_ns;
 
   // 1. What is already here answers older Bulk Reads. A packet still incomplete is a short read.
-  receive(detail::monotonic_ns(), true);
-  if (rx_len_ > 0) {
-    ++counters_.malformed;
-    rx_len_ = 0;
-    garbage_run_ = false;
-  }
+  before_request_ = true;
+  link_.receive(detail::monotonic_ns(), counters_, *this);
+  link_.drop_partial(counters_);
+  before_request_ = false;
 
   // 2. The Bulk Read: every servo and sensor samples when it has arrived.
   const std::int64_t t0 = detail::monotonic_ns();
@@ -488,7 +384,11 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   sample_ns_ = t0 + bulk_wire_ns_;
   sample_applied_seq_ = applied_seq_;
   sample_applied_ns_ = applied_ns_;
-  const bool sent = write_all(bulk_tx_.data(), bulk_len_, deadline_ns);
+  const bool sent = link_.write_all(bulk_tx_.data(), bulk_len_, deadline_ns);
+  // Nothing samples before the request has been handed to the kernel: a host preempted between
+  // its clock read and the write (a loaded machine: milliseconds) put the sample that much early,
+  // and the observer's consistency check saw c ≈ that time × β̇ (0.013 rad over an overrun).
+  sample_ns_ = std::max(sample_ns_, detail::monotonic_ns());
   if (sent) {
     ++counters_.frames_tx;
   } else {
@@ -496,20 +396,7 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   }
 
   // 3. Gather the 2J status packets until the deadline.
-  const int want = 2 * joints_;
-  while (sent && fresh_packets_ < want) {
-    const std::int64_t remaining = deadline_ns - detail::monotonic_ns();
-    if (remaining <= 0) break;
-    pollfd pf{fd_, POLLIN, 0};
-    const timespec ts = detail::to_timespec(remaining);
-    const int r = ::ppoll(&pf, 1, &ts, nullptr);
-    if (r < 0 && errno != EINTR) break;
-    if (r > 0) {
-      if (pf.revents & (POLLERR | POLLNVAL)) break;
-      receive(detail::monotonic_ns(), false);
-      if ((pf.revents & POLLHUP) && !(pf.revents & POLLIN)) break;
-    }
-  }
+  if (sent) link_.gather(deadline_ns, counters_, *this, fresh_packets_, 2 * joints_);
 
   out.joints = joints_;
   out.seq = cycle_;
@@ -520,32 +407,45 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
     const auto ju = static_cast<std::size_t>(j);
     std::uint16_t st = status_[ju];
     out.late_applied_ns[ju] = 0;
-    if (got_servo_[ju] && got_sensor_[ju]) {
-      beta_[ju] = servo_[ju].position;
-      beta_dot_[ju] = servo_[ju].velocity;
-      deflection_[ju] = sensor_[ju];
+    // Hand out a sample: the servo's and sensor's values, when they were sampled, and the command
+    // in effect then (age: cycles since that Bulk Read).
+    const auto hand_out = [&](const dxl::x::ServoFeedback& sv, double defl, std::int64_t at,
+                              std::uint64_t seq, const std::array<std::int64_t, kMaxJoints>& when,
+                              std::uint64_t age) {
+      beta_[ju] = sv.position;
+      beta_dot_[ju] = sv.velocity;
+      deflection_[ju] = defl;
       have_sample_[ju] = true;
-      out.sample_ns[ju] = sample_ns_;
-      out.applied_seq[ju] = applied_seq_;
-      out.applied_ns[ju] = applied_seq_ == kNoCommandSeq ? 0 : applied_ns_[ju];
-      handed_ns_[ju] = sample_ns_;
+      out.sample_ns[ju] = at;
+      out.applied_seq[ju] = seq;
+      out.applied_ns[ju] = seq == kNoCommandSeq ? 0 : when[ju];
+      handed_ns_[ju] = at;
+      age_[ju] = age;
+    };
+    if (got_servo_[ju] && got_sensor_[ju]) {
+      hand_out(servo_[ju], sensor_[ju], sample_ns_, applied_seq_, applied_ns_, 0);
       ++fresh;
     } else if (late_servo_got_[ju] && late_sensor_got_[ju] && prev_sample_ns_ > handed_ns_[ju]) {
       // No fresh answer, but the previous Bulk Read's came late: an older sample, at its time.
-      beta_[ju] = late_servo_[ju].position;
-      beta_dot_[ju] = late_servo_[ju].velocity;
-      deflection_[ju] = late_sensor_[ju];
-      have_sample_[ju] = true;
-      out.sample_ns[ju] = prev_sample_ns_;
-      out.applied_seq[ju] = prev_applied_seq_;
-      out.applied_ns[ju] = prev_applied_seq_ == kNoCommandSeq ? 0 : prev_applied_ns_[ju];
-      handed_ns_[ju] = prev_sample_ns_;
+      hand_out(late_servo_[ju], late_sensor_[ju], prev_sample_ns_, prev_applied_seq_, prev_applied_ns_, 1);
       ++counters_.late_used;
       ++late_used;
     } else {
       st |= kStatusMissing;
       ++counters_.missing;
       out.sample_ns[ju] = 0;
+    }
+    // How old the values a host law acts on are: 0 fresh, 1 the previous Bulk Read's (late),
+    // one more per cycle without either. Beyond stale_limit the law is blind: kStatusStaleFeedback,
+    // and write() gives the servo no torque until a sample comes again.
+    if (st & kStatusMissing) ++age_[ju];
+    if (have_sample_[ju] && age_[ju] > 0) {
+      ++counters_.held;
+      if (age_[ju] > counters_.held_age_max) counters_.held_age_max = age_[ju];
+    }
+    if (have_sample_[ju] && age_[ju] > static_cast<std::uint64_t>(stale_limit_)) {
+      st |= kStatusStaleFeedback;
+      ++counters_.stale_feedback;
     }
     if (!torque_on_[ju]) st |= kStatusTorqueOff;
     if (goal_flags_[ju] & wire::kQuantClamped) st |= kStatusSaturated;
@@ -576,6 +476,9 @@ bool XSeriesDriver::send(const Command* cmd, std::int64_t until_ns) noexcept {
              cmd->kd[ju] * (cmd->beta_dot_ref[ju] - beta_dot_[ju]);
         if (!have_sample_[ju]) u = std::nan("");  // no sample yet: no law to evaluate
       }
+      // The controller's host-side PD (pd_placement: host) is in τ: on a sample older than
+      // stale_limit cycles it is blind, and the servo gets no torque (it stays enabled).
+      if (have_sample_[ju] && age_[ju] > static_cast<std::uint64_t>(stale_limit_)) u = 0.0;
       g = dxl::x::goal_current(u, k_t_, lsb_[ju], identity_[ju].current_limit, flags);
       if (flags & wire::kQuantNotFinite) on[ju] = false;  // NaN/Inf: torque off, as a module
     }
@@ -608,19 +511,35 @@ bool XSeriesDriver::send(const Command* cmd, std::int64_t until_ns) noexcept {
     n += m;
   }
   const std::int64_t t0 = detail::monotonic_ns();
-  if (!write_all(tx_.data(), n, until_ns)) {
+  if (!link_.write_all(tx_.data(), n, until_ns)) {
     ++counters_.tx_dropped;
     return false;
   }
+  const std::int64_t written = detail::monotonic_ns();  // no servo acts before this
   counters_.frames_tx += n > first ? 2 : 1;
   for (int j = 0; j < joints_; ++j) {
     const auto ju = static_cast<std::size_t>(j);
     // A goal acts when its Sync Write has arrived; a torque switch when the whole buffer has.
-    applied_ns_[ju] = t0 + wire_ns(torque_on_[ju] != on[ju] ? n : first);
+    applied_ns_[ju] = std::max(written, t0 + wire_ns(torque_on_[ju] != on[ju] ? n : first));
     torque_on_[ju] = on[ju];
     goal_[ju] = on[ju] ? wire::get_i16(data_.data() + 2 * ju) : std::int16_t{0};
   }
   return true;
+}
+
+FeedbackSpec XSeriesDriver::feedback_spec() const {
+  FeedbackSpec f;
+  f.beta_lsb = dxl::x::kPositionLsb;         // Present Position: 4096 per revolution
+  f.beta_dot_lsb = dxl::x::kVelocityLsb;     // Present Velocity: 0.229 rev/min
+  f.deflection_lsb = wire::kDeflectionLsb;   // the sensor's deflection (124)
+  for (int j = 0; j < joints_; ++j)          // Goal Current: the servo's current LSB × k_t
+    f.torque_lsb = std::max(f.torque_lsb, lsb_[static_cast<std::size_t>(j)] * k_t_);
+  // A servo samples when the Bulk Read reaches it; the host stamps that as its send time + wire
+  // time. The request's delivery varies by the adapter's (USB-serial: 1 ms latency timer) or the
+  // kernel's (a pty's flip buffer on a loaded host) jitter.
+  f.sample_time_uncertainty = 1e-3;
+  f.stale_limit = stale_limit_;
+  return f;
 }
 
 IoStatus XSeriesDriver::write(const Command& cmd) {

@@ -339,6 +339,9 @@ const std::vector<KeyRow> kDaemonKeys = {
     {"driver.set_operating_mode",
      "rate_hz: 250\ndriver:\n  type: serial\n  devices: x_series\n  set_operating_mode: @\ncontroller: {pd_placement: host, K_D: 0.5}\n",
      "false", "sometimes", "", ""},
+    {"driver.max_stale_cycles",
+     "rate_hz: 250\ndriver:\n  type: serial\n  devices: x_series\n  max_stale_cycles: @\ncontroller: {pd_placement: host, K_D: 0.5}\n",
+     "8", "x", "0", "an integer in [1, 1000]"},
     {"controller.k_c", kSimDriver + "controller:\n  k_c: @\n", "5", "x", "1e300", "a number in [-1000, 1000]"},
     {"controller.K_p", kSimDriver + "controller:\n  K_p: @\n", "30", "{a: 1}", "-1", "a number in [0, 1e+06]"},
     {"controller.pd_placement", kSimDriver + "controller:\n  pd_placement: @\n", "module", "[1]", "cloud", "one of module, host"},
@@ -502,6 +505,7 @@ const std::map<std::string, std::set<std::string>> kDriverKeyTypes = {
     {"sensor_id_offset", {"serial"}}, {"set_operating_mode", {"serial"}},
     {"protocol", {"socketcan"}},  {"nodes", {"socketcan"}},    {"drive_mode", {"socketcan"}},
     {"heartbeat", {"socketcan"}}, {"heartbeat_timeout", {"socketcan"}},
+    {"max_stale_cycles", {"serial"}},
 };
 }  // namespace
 

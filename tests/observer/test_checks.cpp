@@ -593,3 +593,120 @@ TEST(Verdict, SeverityIsConfigured) {
 }
 
 }  // namespace
+
+// ---- Thresholds from the driver's declared resolution (README §1.3) ----
+namespace {
+pw::drivers::FeedbackSpec pedalwave_wire() {
+  pw::drivers::FeedbackSpec f;
+  f.beta_lsb = 1e-4;  // drivers/include/pedalwave/drivers/wire.hpp
+  f.beta_dot_lsb = 1e-3;
+  f.deflection_lsb = 2e-5;
+  f.torque_lsb = 1e-3;
+  return f;
+}
+pw::drivers::FeedbackSpec stock_servo() {  // XM430: Present Position / Velocity, Goal Current × k_t
+  pw::drivers::FeedbackSpec f;
+  f.beta_lsb = 2 * M_PI / 4096;
+  f.beta_dot_lsb = 0.229 * 2 * M_PI / 60;
+  f.deflection_lsb = 2e-5;
+  f.torque_lsb = 2.69e-3 * 1.78;
+  f.sample_time_uncertainty = 1e-3;
+  f.stale_limit = 8;
+  return f;
+}
+double quantize(double v, double lsb) { return lsb > 0 ? lsb * std::round(v / lsb) : v; }
+// Encoder verdicts over `seconds` of a healthy quantized frame at 500 Hz (a 0.02 rad offset on
+// joint 2 from `jump_at` s on, if > 0).
+std::uint32_t encoder_flags(const pw::drivers::FeedbackSpec& declared, const pw::drivers::FeedbackSpec& sensors,
+                            double seconds, double jump_at = -1) {
+  auto p = params();
+  p.period = 2e-3;
+  p.feedback = declared;
+  p.r_threshold = 1e3;  // the synthetic motion is no dynamics: the residual is not under test
+  pw::observer::FaultObserver o(p);
+  pw::drivers::Feedback fb{};
+  pw::drivers::Command cmd{};
+  cmd.joints = 5;
+  const auto n = static_cast<std::uint64_t>(seconds / p.period);
+  for (std::uint64_t k = 0; k < n; ++k) {
+    frame(fb, k, p.period);
+    for (std::size_t i = 0; i < 5; ++i) {
+      // A faster motion than frame()'s: the gait's ≈ 1.5 rad/s.
+      const double t = static_cast<double>(k) * p.period;
+      fb.beta[i] = quantize(0.5 * std::sin(3 * t + static_cast<double>(i)), sensors.beta_lsb);
+      fb.beta_dot[i] = quantize(1.5 * std::cos(3 * t + static_cast<double>(i)), sensors.beta_dot_lsb);
+      if (jump_at > 0 && t >= jump_at && i == 2) fb.beta[i] += 0.02;
+    }
+    cmd.seq = k;
+    o.observe(fb, cmd, static_cast<double>(k) * p.period, p.period);
+  }
+  const std::uint32_t enc = (1u << static_cast<unsigned>(FaultClass::kEncoderJump)) |
+                            (1u << static_cast<unsigned>(FaultClass::kEncoderNoise)) |
+                            (1u << static_cast<unsigned>(FaultClass::kEncoderStuck));
+  return o.flags() & enc;
+}
+}  // namespace
+
+TEST(Resolution, ThePedalwaveWireKeepsTheConfiguredThresholds) {
+  auto p = params();
+  const pw::observer::FaultObserver plain(p);
+  p.feedback = pedalwave_wire();
+  const pw::observer::FaultObserver wire(p);
+  EXPECT_EQ(wire.consistency_threshold_used(), plain.consistency_threshold_used());
+  EXPECT_EQ(wire.consistency_threshold_used(), p.consistency_threshold);
+  EXPECT_EQ(wire.hold_motion_used(), p.hold_motion);
+  EXPECT_EQ(wire.r_threshold_used(15.0, 30.0), p.r_threshold) << "the paper's module PD";
+  EXPECT_EQ(wire.r_threshold_used(0.0, 0.0), p.r_threshold);
+}
+
+TEST(Resolution, AStockServosCountsSetTheEncoderThresholds) {
+  auto p = params();
+  p.period = 2e-3;
+  p.feedback = stock_servo();
+  const pw::observer::FaultObserver o(p);
+  const double q = p.feedback.beta_lsb + 0.5 * p.period * p.feedback.beta_dot_lsb;
+  EXPECT_DOUBLE_EQ(o.consistency_threshold_used(), p.quantization_margin * q);
+  EXPECT_GT(o.consistency_threshold_used(), 6 * p.consistency_threshold);
+  // 2ε·|β̇| more at 2 rad/s (the sample times are the host's, ±1 ms)
+  EXPECT_DOUBLE_EQ(o.consistency_threshold_used(2.0), p.quantization_margin * (q + 2 * 1e-3 * 2.0));
+  EXPECT_GT(o.hold_motion_used(), p.hold_motion);
+  // The residual's quantization floor (torque LSB/2 + 5σ of J·q_β̇ through K_O) is below 0.03.
+  EXPECT_EQ(o.r_threshold_used(0.0, 0.0), p.r_threshold);
+  // A very coarse sensor raises it: 5σ of k_d q_β/√12 through K_O ≈ 5·10·15·1.5e-3/√12 N·m.
+  EXPECT_GT(o.r_threshold_used(15.0, 0.0), 0.3);
+}
+
+TEST(Resolution, ServoCountsAreNoEncoderFaultWhenDeclaredAndAnOffsetJumpStillIs) {
+  const pw::drivers::FeedbackSpec servo = stock_servo();
+  // Declared: 20 s of the quantized motion, no encoder verdict.
+  EXPECT_EQ(encoder_flags(servo, servo, 20.0), 0u);
+  // Not declared (the configured 5e-4 rad against 1.5e-3 rad counts): the finding.
+  EXPECT_NE(encoder_flags({}, servo, 20.0), 0u);
+  // Declared, with a 0.02 rad offset at 5 s on joint 3: an encoder jump.
+  EXPECT_EQ(encoder_flags(servo, servo, 6.0, 5.0), 1u << static_cast<unsigned>(FaultClass::kEncoderJump));
+}
+
+TEST(Checks, AHeldSampleBeyondTheDriversLimitIsStaleFeedbackOnItsJoint) {
+  auto p = params();
+  p.feedback = stock_servo();
+  p.missing_cycles = 50;  // module_silent is not under test
+  pw::observer::FaultObserver o(p);
+  pw::drivers::Feedback fb{};
+  pw::drivers::Command cmd{};
+  for (std::uint64_t k = 0; k < 20; ++k) {
+    frame(fb, k, p.period);
+    if (k >= 10) fb.status[3] = pw::drivers::kStatusMissing;
+    if (k >= 18) fb.status[3] |= pw::drivers::kStatusStaleFeedback;
+    o.observe(fb, cmd, static_cast<double>(k) * p.period, p.period);
+    if (k < 18) {
+      EXPECT_EQ(o.fault_count(), 0) << k;
+    }
+  }
+  ASSERT_EQ(o.fault_count(), 1);
+  const pw::observer::FaultRecord& f = o.faults()[0];
+  EXPECT_EQ(f.fault, FaultClass::kStaleFeedback);
+  EXPECT_EQ(f.joint, 3);
+  EXPECT_EQ(f.severity, Severity::kStop);
+  EXPECT_EQ(f.threshold, 8);
+  EXPECT_EQ(f.value, 9) << "cycles without a sample as the observer saw them";
+}

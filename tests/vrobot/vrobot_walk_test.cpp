@@ -155,43 +155,13 @@ TEST(BusModel, ObserverIsExactOverTheModulesTiming) {
 }
 
 namespace {
-// Peak |r| over all joints in the rows of the daemon's cycles.csv (--plots) whose controller time
-// is in [from, to); `columns`: residual columns found, `rows`: rows in the window.
-struct ResidualPeak {
-  double value = 0.0;
-  int rows = 0;
-  std::size_t columns = 0;
-};
+using test::ResidualPeak;
+using test::residual_peak;
 // Fault events, warnings and holds the run listed in its summary.
 int listed_events(const WalkResult& r) {
   int n = 0;
   for (const runtime::RunEvent& e : r.daemon.events) n += e.listed;
   return n;
-}
-ResidualPeak residual_peak(const std::string& dir, double from, double to) {
-  ResidualPeak p;
-  std::ifstream csv(dir + "/cycles.csv");
-  std::string line;
-  if (!std::getline(csv, line)) return p;
-  std::vector<int> cols;
-  {
-    std::stringstream hs(line);
-    std::string name;
-    for (int c = 0; std::getline(hs, name, ','); ++c)
-      if (name.rfind("residual_", 0) == 0) cols.push_back(c);
-  }
-  p.columns = cols.size();
-  while (std::getline(csv, line)) {
-    std::stringstream ls(line);
-    std::string cell;
-    std::vector<std::string> v;
-    while (std::getline(ls, cell, ',')) v.push_back(cell);
-    const double t = std::stod(v.at(1));  // t_controller_s
-    if (t < from || t >= to) continue;
-    ++p.rows;
-    for (int c : cols) p.value = std::max(p.value, std::abs(std::stod(v.at(static_cast<std::size_t>(c)))));
-  }
-  return p;
 }
 }  // namespace
 

@@ -11,13 +11,16 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <sstream>
 #include <cstdint>
 #include <cstdio>
+#include <fstream>
 #include <memory>
 #include <ostream>
 #include <stdexcept>
 #include <string>
 #include <system_error>
+#include <vector>
 
 #include "daemon.hpp"
 #include "pedalwave/config/daemon.hpp"
@@ -148,6 +151,39 @@ inline app::DaemonOptions quiet(drivers::Driver* d = nullptr, bool telemetry = f
   o.print = false;
   o.driver = d;
   return o;
+}
+
+// Peak |r| over all joints in the rows of the daemon's cycles.csv (--plots) whose controller time
+// is in [from, to); `columns`: residual columns found, `rows`: rows in the window.
+struct ResidualPeak {
+  double value = 0.0;
+  int rows = 0;
+  std::size_t columns = 0;
+};
+inline ResidualPeak residual_peak(const std::string& dir, double from, double to) {
+  ResidualPeak p;
+  std::ifstream csv(dir + "/cycles.csv");
+  std::string line;
+  if (!std::getline(csv, line)) return p;
+  std::vector<int> cols;
+  {
+    std::stringstream hs(line);
+    std::string name;
+    for (int c = 0; std::getline(hs, name, ','); ++c)
+      if (name.rfind("residual_", 0) == 0) cols.push_back(c);
+  }
+  p.columns = cols.size();
+  while (std::getline(csv, line)) {
+    std::stringstream ls(line);
+    std::string cell;
+    std::vector<std::string> v;
+    while (std::getline(ls, cell, ',')) v.push_back(cell);
+    const double t = std::stod(v.at(1));  // t_controller_s
+    if (t < from || t >= to) continue;
+    ++p.rows;
+    for (int c : cols) p.value = std::max(p.value, std::abs(std::stod(v.at(static_cast<std::size_t>(c)))));
+  }
+  return p;
 }
 
 // Copies of the emulator's counters at the end of a run.

@@ -111,7 +111,7 @@ const char* class_name(FaultClass f) {
                                 "encoder_jump", "encoder_noise", "deflection_stuck",
                                 "deflection_bias", "deflection_scale", "spring_broken",
                                 "module_silent", "stale_data", "implausible", "saturation",
-                                "overrun", "exception"};
+                                "overrun", "exception", "stale_feedback"};
   const auto i = static_cast<std::size_t>(f);
   return i < std::size(names) ? names[i] : "?";
 }

@@ -277,10 +277,14 @@ double observer_threshold(const config::DaemonConfig& cfg) {
   return NAN;
 }
 
-std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg) {
+std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg,
+                                                 const drivers::Driver* driver) {
 #if PEDALWAVE_HAS_OBSERVER
   if (!cfg.observer) return nullptr;
   observer::ObserverParams op;
+  // The driver's declared sensor resolution and host-law stale limit: the observer's thresholds
+  // are at least what that quantization produces (runtime/observer/README.md §1.3).
+  if (driver) op.feedback = driver->feedback_spec();
   op.robot = cfg.robot;
   if (op.robot.K.empty())  // one stiffness per joint, explicitly
     op.robot.K.assign(static_cast<std::size_t>(op.robot.N - 1), op.robot.K_all);
@@ -296,6 +300,7 @@ std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg
   return std::make_unique<observer::RuntimeObserver>(op);
 #else
   (void)cfg;
+  (void)driver;
   return nullptr;
 #endif
 }
@@ -477,7 +482,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   drivers::Driver* driver = opt.driver ? opt.driver : owned.top();
   auto* sim = dynamic_cast<drivers::SimDriver*>(opt.driver ? opt.driver : owned.base.get());
   GaitStage stage(cfg.controller);
-  const std::unique_ptr<runtime::Observer> observer = make_observer(cfg);
+  const std::unique_ptr<runtime::Observer> observer = make_observer(cfg, driver);
   auto rt = std::make_unique<runtime::Runtime>(rc, *driver, stage, observer.get());
 
   std::vector<runtime::TelemetrySink*> sinks;

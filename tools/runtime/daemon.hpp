@@ -121,7 +121,10 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
 
 // The onboard observer as the daemon wires it: the configured robot (one stiffness per joint),
 // the loop period and, on the simulated plant, the scene's nominal ground, known motor friction
-// and torque limit. nullptr when the configuration turns it off or the observer layer is not built.
-std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg);
+// and torque limit; with `driver`, its declared feedback resolution and stale limit
+// (Driver::feedback_spec(), after its configuration). nullptr when the configuration turns it off
+// or the observer layer is not built.
+std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg,
+                                                 const drivers::Driver* driver = nullptr);
 
 }  // namespace pedalwave::app

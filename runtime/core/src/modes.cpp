@@ -33,6 +33,7 @@ const char* to_string(FaultClass f) noexcept {
     case FaultClass::kSaturation: return "saturation";
     case FaultClass::kOverrun: return "overrun";
     case FaultClass::kException: return "exception";
+    case FaultClass::kStaleFeedback: return "stale_feedback";
     case FaultClass::kCount: break;
   }
   return "?";

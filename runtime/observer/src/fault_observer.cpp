@@ -15,6 +15,7 @@ namespace pedalwave::observer {
 using drivers::Command;
 using drivers::CommandHistory;
 using drivers::Feedback;
+using drivers::FeedbackSpec;
 
 namespace {
 constexpr std::size_t idx(FaultClass c) { return static_cast<std::size_t>(c); }
@@ -36,6 +37,7 @@ const char* text_of(FaultClass c) {
     case FaultClass::kStaleData: return "observer: stale / out-of-order data";
     case FaultClass::kImplausible: return "observer: NaN or out-of-range measurement";
     case FaultClass::kSaturation: return "observer: persistent torque saturation";
+    case FaultClass::kStaleFeedback: return "observer: host-side law on feedback older than the driver's limit";
     default: return "observer fault";
   }
 }
@@ -63,6 +65,7 @@ struct FaultObserver::Joint {
   double t0 = 0;
   int n = 0, above = 0;
   double peak = 0;
+  double r_limit = 0;  // the residual's threshold at the crossing [N·m]
   Eigen::Matrix4d G = Eigen::Matrix4d::Zero();
   Eigen::Vector4d g = Eigen::Vector4d::Zero();
   // The same least squares over the healthy past (forgetting nominal_tau): the nominal signature
@@ -76,7 +79,7 @@ struct FaultObserver::Joint {
   int hold_beta = 0, hold_defl = 0, hold_rate = 0;
   double ref_min = 0, ref_max = 0, beta_min = 0, beta_max = 0, rate_int = 0;
   int spike_wait = 0, spikes = 0;
-  double spike_value = 0;
+  double spike_value = 0, spike_limit = 0;  // the first spike's |c| and the threshold it crossed
   double prev_ref_rate = 0;  // β̇_ref of the previous command [rad/s]
   int cmd_settle = 0;        // cycles left without consistency checks after a command step
   bool r_started = false;    // the residual's filter was reset at the settle time
@@ -143,6 +146,47 @@ void validate(const ObserverParams& p) {
   pos("saturation_tau", p.saturation_tau);
   pos("accel_filter_hz", p.accel_filter_hz);
   pos("speed_tau", p.speed_tau);
+  nonneg("feedback.beta_lsb", p.feedback.beta_lsb);
+  nonneg("feedback.beta_dot_lsb", p.feedback.beta_dot_lsb);
+  nonneg("feedback.deflection_lsb", p.feedback.deflection_lsb);
+  nonneg("feedback.torque_lsb", p.feedback.torque_lsb);
+  nonneg("feedback.sample_time_uncertainty", p.feedback.sample_time_uncertainty);
+  if (p.feedback.stale_limit < 0) fail("feedback.stale_limit", p.feedback.stale_limit, ">= 0 cycles");
+  pos("quantization_margin", p.quantization_margin);
+  pos("quantization_sigmas", p.quantization_sigmas);
+}
+
+// ---- Thresholds from the declared resolution (README §1.3) ----
+// A uniform quantizer of step q has error within ±q/2, σ = q/√12.
+// Consistency c = Δβ − dt (β̇₀ + β̇₁)/2: the roundings give |c_q| ≤ q_β + dt·q_β̇/2 (hard bound:
+// one spike is a verdict, so a bound, not a σ).
+// A sample time off by at most ε (FeedbackSpec::sample_time_uncertainty) at each end moves Δβ by
+// up to ε·|β̇| there: 2ε·|β̇| more.
+double FaultObserver::consistency_limit(double dt, bool stretched, double beta_dot) const {
+  const double stretch = stretched ? std::max(1.0, dt / p_.period) : 1.0;
+  const double quant = p_.feedback.beta_lsb + 0.5 * dt * p_.feedback.beta_dot_lsb +
+                       2.0 * p_.feedback.sample_time_uncertainty * std::abs(beta_dot);
+  return std::max(p_.consistency_threshold * stretch * stretch, p_.quantization_margin * quant);
+}
+
+// Residual: e/dt holds (J q_β̇ + (k_d + b_m) q_β)(k+1) − (…)(k) — differenced roundings, which
+// the ZOH low-pass r ← r + a (e/dt − r) passes with σ_r = (a/dt)·√(2/(2−a))·σ (≈ K_O·σ) —, and
+// the undifferenced k_p (q_β₀ + q_β₁)/2, K (q_d₀ + q_d₁)/2 and the actuator's rounding of the
+// command (≤ q_τ/2), which it passes at most at their bound.
+double FaultObserver::residual_limit(double dt, double kd, double kp) const {
+  const FeedbackSpec& f = p_.feedback;
+  if (f.beta_lsb <= 0 && f.beta_dot_lsb <= 0 && f.deflection_lsb <= 0 && f.torque_lsb <= 0)
+    return p_.r_threshold;
+  const double a = 1.0 - std::exp(-p_.K_O * dt);
+  const double gain = a / dt * std::sqrt(2.0 / (2.0 - a));
+  const double s_v = J_ * f.beta_dot_lsb / std::sqrt(12.0);
+  const double s_b = (std::abs(kd) + p_.motor_viscous) * f.beta_lsb / std::sqrt(12.0);
+  const double sigma = gain * std::sqrt(s_v * s_v + s_b * s_b);
+  double K_max = 0.0;
+  for (int j = 0; j < joints_; ++j) K_max = std::max(K_max, K_[static_cast<std::size_t>(j)]);
+  const double bounded =
+      0.5 * (f.torque_lsb + std::abs(kp) * f.beta_lsb + K_max * f.deflection_lsb);
+  return std::max(p_.r_threshold, p_.quantization_sigmas * sigma + bounded);
 }
 
 FaultObserver::FaultObserver(const ObserverParams& p) : p_(p) {
@@ -150,6 +194,11 @@ FaultObserver::FaultObserver(const ObserverParams& p) : p_(p) {
   joints_ = p_.robot.N - 1;
   J_ = p_.robot.n * p_.robot.n * p_.robot.I_r;
   for (int j = 0; j < joints_; ++j) K_[static_cast<std::size_t>(j)] = p_.robot.stiffness(j);
+  // The hold rule's apparent motion while β sits on one count: the true motion ≤ q_β, and the
+  // integrated β̇ adds its roundings, ≤ hold_cycles·T·q_β̇/2.
+  hold_motion_ = std::max(p_.hold_motion,
+                          p_.quantization_margin * (p_.feedback.beta_lsb + p_.hold_cycles * p_.period *
+                                                                               0.5 * p_.feedback.beta_dot_lsb));
   jt_ = std::make_unique<Joint[]>(static_cast<std::size_t>(joints_));
   if (p_.body_model) body_model_ = std::make_unique<BodyModel>(p_.robot, p_.ground);
   reset();
@@ -226,6 +275,12 @@ bool FaultObserver::check_joint(const Feedback& fb, int j, double t, double dt) 
   const std::uint16_t st = fb.status[k];
   // Missing: the module did not answer this cycle (values are the driver's stale copy).
   if (st & drivers::kStatusMissing) {
+    // A host-side law (the driver's FeedbackSpec::stale_limit) acting on a sample older than the
+    // driver allows: named at once (the driver gives the joint no torque meanwhile). All joints at
+    // once: the link's (joint −1).
+    if (st & drivers::kStatusStaleFeedback)
+      latch(FaultClass::kStaleFeedback, link_silent_ ? -1 : j, t, s.missing_run + 1,
+            p_.feedback.stale_limit, 0.0);
     // Every module missing at once (a stalled host, a cut link) isolates no module: the run is
     // held, neither counted nor reset, and the runtime's stale_timeout judges the link.
     if (link_silent_) return false;
@@ -322,8 +377,9 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
   // late, a late answer used) the trapezoid's own error grows with the interval squared (a change
   // of β̈ inside it: ≤ dt²/8 · Δβ̈), so the threshold does too; an offset jump (≥ 10× the
   // threshold) still stands out over three periods.
-  const double stretch = iv.nominal ? 1.0 : std::max(1.0, dt / p_.period);
-  const double c_threshold = p_.consistency_threshold * stretch * stretch;
+  // With a declared sensor resolution it is at least margin × the quantization's bound (README
+  // §1.3: a stock servo's 4096 counts per revolution, 1.5e-3 rad, is three times 5e-4 rad).
+  const double c_threshold = consistency_limit(dt, !iv.nominal, std::max(std::abs(bd0), std::abs(bd1)));
   double c = (b1 - b0) - 0.5 * dt * (bd0 + bd1);
   // A command that takes effect inside the interval moves β̇ by the module PD's fast response:
   // J β̈ + (k_d + b_m) β̇ = (law offset − k_p β − K·deflection), so β̇ follows its target with the
@@ -403,16 +459,17 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
   } else if (s.spike_wait > 0) {
     if (std::abs(c_either) > c_limit) ++s.spikes;
     if (s.spikes >= p_.noise_spikes) {
-      latch(FaultClass::kEncoderNoise, j, t, s.spike_value, p_.consistency_threshold, 0.0);
+      latch(FaultClass::kEncoderNoise, j, t, s.spike_value, s.spike_limit, 0.0);
       s.spike_wait = 0;
     } else if (--s.spike_wait == 0 && s.hold_beta + 2 < p_.jump_window) {
       // One isolated spike, the encoder alive afterwards: an offset jump.
-      latch(FaultClass::kEncoderJump, j, t, s.spike_value, p_.consistency_threshold, s.spike_value);
+      latch(FaultClass::kEncoderJump, j, t, s.spike_value, s.spike_limit, s.spike_value);
     }
   } else if (std::abs(c_either) > c_limit && !sensor_latched) {
     s.spike_wait = p_.jump_window;
     s.spikes = 0;
     s.spike_value = c;
+    s.spike_limit = c_limit;
   }
 
   // ---- Hold (stuck) detection: bit-identical values while motion is commanded / happens ----
@@ -436,16 +493,16 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
   if (settled && s.hold_beta >= p_.hold_cycles) {
     const double commanded = (cmd.kp[k] > 0 ? s.ref_max - s.ref_min : 0.0);
     const double motion = std::max(commanded, std::abs(s.rate_int));
-    if (motion >= p_.hold_motion) {
+    if (motion >= hold_motion_) {
       if (s.hold_defl >= p_.hold_cycles && s.hold_rate >= p_.hold_cycles && s.hold_rate == s.hold_beta)
         latch(FaultClass::kModuleSilent, j, t, s.hold_beta, p_.hold_cycles, 0.0);
       else
-        latch(FaultClass::kEncoderStuck, j, t, motion, p_.hold_motion, b1);
+        latch(FaultClass::kEncoderStuck, j, t, motion, hold_motion_, b1);
     }
   }
-  if (settled && s.hold_defl >= p_.hold_cycles_deflection && s.beta_max - s.beta_min >= p_.hold_motion &&
+  if (settled && s.hold_defl >= p_.hold_cycles_deflection && s.beta_max - s.beta_min >= hold_motion_ &&
       s.hold_beta == 0)
-    latch(FaultClass::kDeflectionStuck, j, t, s.beta_max - s.beta_min, p_.hold_motion, d1);
+    latch(FaultClass::kDeflectionStuck, j, t, s.beta_max - s.beta_min, hold_motion_, d1);
 
   // ---- Momentum residual (file comment of the header) ----
   // ∫u dt: one piece with the command in effect since the previous sample, or one piece per
@@ -506,6 +563,8 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
   const double Ib = p_.motor_viscous * (b1 - b0);          // ∫b_m β̇ dt
   const double e = J_ * (bd1 - bd0) - (Iu - Is - Ib);      // unexplained impulse
   const double a = 1.0 - std::exp(-p_.K_O * dt);
+  // The detection threshold: the configured one, or the declared quantization's floor (§1.3).
+  const double r_limit = residual_limit(dt, cmd.torque_off ? 0.0 : cmd.kd[k], cmd.torque_off ? 0.0 : cmd.kp[k]);
   double& r = r_[k];
   // The residual restarts at the settle time: its filter holds nothing of the start-up transient
   // (the module PD's start from rest; over a bus, before the torque-on split above, the first
@@ -533,9 +592,10 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
       s.G_nom.noalias() += phi * phi.transpose();
       s.g_nom += phi * r;
     }
-    if (settled && std::abs(r) > p_.r_threshold && s.spike_wait == 0) {
+    if (settled && std::abs(r) > r_limit && s.spike_wait == 0) {
       s.classifying = true;
       s.t0 = t;
+      s.r_limit = r_limit;
       s.n = s.above = 0;
       s.peak = std::abs(r);  // the evidence starts with the crossing: value ≥ threshold
       s.G.setZero();
@@ -548,7 +608,7 @@ void FaultObserver::residual_step(const Feedback& fb, const Interval& iv, int j,
   s.G.noalias() += phi * phi.transpose();
   s.g += phi * r;
   ++s.n;
-  if (std::abs(r) > 0.5 * p_.r_threshold) ++s.above;
+  if (std::abs(r) > 0.5 * s.r_limit) ++s.above;
   if (t - s.t0 >= p_.t_transient + p_.t_classify) classify(j, t);
 }
 
@@ -596,19 +656,19 @@ void FaultObserver::classify(int j, double t) {
   const double K = K_[static_cast<std::size_t>(j)];
   switch (best) {
     case 0:
-      latch(FaultClass::kActuatorTorque, j, t, s.peak, p_.r_threshold, 1.0 + th(0));
+      latch(FaultClass::kActuatorTorque, j, t, s.peak, s.r_limit, 1.0 + th(0));
       break;
     case 1:
       if (th(1) >= p_.spring_broken)
-        latch(FaultClass::kSpringBroken, j, t, s.peak, p_.r_threshold, 1.0 - th(1));
+        latch(FaultClass::kSpringBroken, j, t, s.peak, s.r_limit, 1.0 - th(1));
       else
-        latch(FaultClass::kDeflectionScale, j, t, s.peak, p_.r_threshold, 1.0 / (1.0 - th(1)));
+        latch(FaultClass::kDeflectionScale, j, t, s.peak, s.r_limit, 1.0 / (1.0 - th(1)));
       break;
     case 2:
-      latch(FaultClass::kMotorFriction, j, t, s.peak, p_.r_threshold, -th(2));
+      latch(FaultClass::kMotorFriction, j, t, s.peak, s.r_limit, -th(2));
       break;
     default:
-      latch(FaultClass::kDeflectionBias, j, t, s.peak, p_.r_threshold, th(3) / K);
+      latch(FaultClass::kDeflectionBias, j, t, s.peak, s.r_limit, th(3) / K);
       break;
   }
 }

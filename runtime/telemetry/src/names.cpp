@@ -11,11 +11,12 @@ constexpr std::array<const char*, 7> kModeNames = {
 
 // Indexed by runtime::FaultClass. May name more classes than the runtime header currently has
 // (the static_assert below fails if the runtime adds one we do not name).
-constexpr std::array<const char*, 16> kFaultNames = {
+constexpr std::array<const char*, 17> kFaultNames = {
     "none",          "actuator_torque",  "motor_friction",  "encoder_stuck",
     "encoder_jump",  "encoder_noise",    "deflection_stuck", "deflection_bias",
     "deflection_scale", "spring_broken", "module_silent",   "stale_data",
-    "implausible",   "saturation",       "overrun",         "exception"};
+    "implausible",   "saturation",       "overrun",         "exception",
+    "stale_feedback"};
 static_assert(kFaultNames.size() >= static_cast<std::size_t>(runtime::FaultClass::kCount),
               "a runtime::FaultClass has no telemetry name: add it to kFaultNames");
 constexpr std::size_t kFaultCount = static_cast<std::size_t>(runtime::FaultClass::kCount);

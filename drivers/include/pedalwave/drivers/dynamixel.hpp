@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <string>
 
 #include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/wire.hpp"
@@ -124,6 +125,10 @@ const Register* register_at(std::uint16_t address) noexcept;
 // Baud-rate register index ↔ bit/s (1 = 57600 … 6 = 4 M, as the X-series); -1 / 0 when none.
 int baud_index(int baud) noexcept;
 int baud_of_index(int index) noexcept;
+// For messages: a status packet's error number (its low 7 bits) by name ("CRC Error", …), and a
+// baud-rate index as its rate ("4000000 baud" or "no rate of the index").
+const char* error_name(std::uint8_t error) noexcept;
+std::string baud_text(int index);
 // What a control-table access of `length` bytes at `address` may do, by the table alone (no
 // module state): 0 = allowed; kErrAccess (outside the table; a write touching a gap or a
 // read-only register; a read touching a write-only register), kErrDataLength (length 0; a write

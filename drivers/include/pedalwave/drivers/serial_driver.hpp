@@ -30,6 +30,7 @@
 #include <string>
 #include <vector>
 
+#include "pedalwave/drivers/dxl_link.hpp"
 #include "pedalwave/drivers/dynamixel.hpp"
 #include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/late_sample.hpp"
@@ -60,6 +61,10 @@ struct SerialConfig {
   double torque_constant = 1.78;
   int sensor_id_offset = 100;
   bool set_operating_mode = true;
+  // X-series only: the host evaluates the PD (the controller's pd_placement: host); a joint whose
+  // last sample is more than this many cycles old gets no torque and is flagged
+  // kStatusStaleFeedback (the observer names it stale_feedback) [cycles].
+  int max_stale_cycles = 8;
 };
 
 // What configure_modules() found on module j (joint j + 1, ID j + 1).
@@ -81,7 +86,7 @@ std::string serial_bauds_text();
 // and value.
 int open_serial_port(const std::string& path, int baud);
 
-class SerialDriver final : public Driver {
+class SerialDriver final : public Driver, private DxlPacketSink {
  public:
   // Checks the bus budget, opens cfg.device, configure_modules(). With cfg.devices == kXSeries
   // every call below goes to an XSeriesDriver (xseries_driver.hpp) on the same port.
@@ -108,18 +113,18 @@ class SerialDriver final : public Driver {
   IoStatus write(const Command& cmd) override;
   void safe_stop() override;
   const DriverCounters& counters() const override;
+  // The wire's resolutions (wire.hpp: β, β̇, deflection, τ), no host law; X-series: its own.
+  FeedbackSpec feedback_spec() const override;
   std::uint8_t sync_counter() const { return counter_; }
   const ModuleClock& clock(int j) const { return clocks_[static_cast<std::size_t>(j)]; }
 
  private:
-  bool write_all(const std::uint8_t* p, std::size_t n, std::int64_t until_ns) noexcept;
-  void receive(std::int64_t stamp_ns) noexcept;   // read available bytes, parse
-  void parse(std::int64_t stamp_ns) noexcept;
+  // A packet from the link (DxlPacketSink): a status packet classified by its rolling counter.
+  void on_packet(dxl::DxlStatus s, const dxl::Packet& p, std::int64_t stamp_ns) noexcept override;
   void handle_status(const dxl::Packet& p, std::int64_t stamp_ns) noexcept;
   bool send_commands(const Command* cmd, bool all_off, std::int64_t until_ns) noexcept;
   void poll_overruns() noexcept;
   // One unicast request and its status packet from `id` (false: none within timeout_ns).
-  bool transact(const std::uint8_t* p, std::size_t n, std::uint8_t id, std::int64_t timeout_ns);
   std::vector<std::uint8_t> read_registers(int j, std::uint16_t addr, std::uint16_t len,
                                            std::int64_t timeout_ns);
   void write_registers(int j, std::uint16_t addr, const std::vector<std::uint8_t>& data,
@@ -135,13 +140,12 @@ class SerialDriver final : public Driver {
   int joints_ = 0;
   std::int64_t write_timeout_ns_ = 0;
   DriverCounters counters_{};
-  SilenceMeter silence_;
+  DxlLink link_;                    // the byte stream (shared with the X-series mode's driver)
   std::uint64_t cycle_ = 0;
   std::uint8_t counter_ = 0;        // cycle counter c [-]
   int fresh_count_ = 0;
   std::int64_t deadline_ns_ = 0;
   std::int64_t stamp_ns_ = 0;
-  bool garbage_run_ = false;        // inside a run of bytes without a header
   bool icount_ok_ = true;           // TIOCGICOUNT supported
   std::uint64_t overruns_ = 0;      // last kernel overrun count [-]
   std::array<RollingCounterState, kMaxJoints> rc_{};
@@ -150,11 +154,8 @@ class SerialDriver final : public Driver {
   std::array<std::uint8_t, kMaxJoints> ids_{};
   std::array<std::uint8_t, 64 + kMaxJoints> sync_tx_{};  // sync-counter write + Sync Read
   std::size_t sync_read_len_ = 0;
-  std::array<std::uint8_t, 4096> rx_{};
-  std::size_t rx_len_ = 0;
   std::array<std::uint8_t, dxl::kMaxPacket> tx_{};
   std::array<std::uint8_t, kMaxJoints * dxl::kCommandBlockSize> blocks_{};
-  dxl::Packet pkt_{};
   std::array<ModuleClock, kMaxJoints> clocks_{};
   std::array<LateSample, kMaxJoints> late_{};      // the newest late answer (and record) this cycle
   std::array<HandedOut, kMaxJoints> handed_{};     // the last sample time handed out

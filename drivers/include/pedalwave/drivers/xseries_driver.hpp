@@ -26,9 +26,14 @@
 // and Torque Enable 0 on every servo.
 // Timing (Feedback::timing = kModule, times from the host's clock, PROTOCOL.md §3.6): a stock
 // servo has no sync counter and no module clock in the pedalwave sense; it samples when the Bulk
-// Read has arrived: sample_ns = the Bulk Read's send time + its wire time. The command acts on
-// arrival of the Sync Write: applied_ns = its send time + its wire time, applied_seq = the
-// Command::seq of the last write() that went out before the sample.
+// Read has arrived: sample_ns = the Bulk Read's send time + its wire time, no earlier than its
+// write() returned. The command acts on arrival of the Sync Write: applied_ns = its send time +
+// its wire time (no earlier than the write's return), applied_seq = the Command::seq of the last
+// write() that went out before the sample.
+// Held samples: a joint without a fresh answer keeps its last sample (age counted in cycles:
+// DriverCounters::held, held_age_max); older than max_stale_cycles it is flagged
+// kStatusStaleFeedback and write() gives its servo Goal Current 0 (the host's PD is blind).
+// feedback_spec() declares the servos' and sensors' resolution for the observer's thresholds.
 // read()/write()/safe_stop() never allocate, lock, throw or block past their deadline.
 #pragma once
 
@@ -37,6 +42,7 @@
 #include <string>
 #include <vector>
 
+#include "pedalwave/drivers/dxl_link.hpp"
 #include "pedalwave/drivers/dynamixel.hpp"
 #include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/serial_driver.hpp"
@@ -58,7 +64,7 @@ struct XSeriesIdentity {
 const char* xseries_model_name(std::uint16_t model) noexcept;
 double xseries_current_lsb(std::uint16_t model) noexcept;
 
-class XSeriesDriver final : public Driver {
+class XSeriesDriver final : public Driver, private DxlPacketSink {
  public:
   // Takes ownership of fd (a tty or pty slave in raw mode). Checks cfg (joints, sensor IDs clear
   // of the servos' and ≤ 252, torque constant > 0, return delay 0 … 508 µs) and the X-series bus
@@ -79,17 +85,18 @@ class XSeriesDriver final : public Driver {
   IoStatus write(const Command& cmd) override;
   void safe_stop() override;
   const DriverCounters& counters() const override { return counters_; }
+  // Present Position / Velocity LSBs, the sensor's deflection LSB, Goal Current LSB × k_t, and
+  // SerialConfig::max_stale_cycles as the stale limit of the host-side PD.
+  FeedbackSpec feedback_spec() const override;
 
  private:
   enum class Dev : std::uint8_t { kNone, kServo, kSensor };
   Dev device_of(std::uint8_t id, int& j) const noexcept;
   std::string name(int j, bool sensor) const;
-  bool write_all(const std::uint8_t* p, std::size_t n, std::int64_t until_ns) noexcept;
-  void receive(std::int64_t stamp_ns, bool before_request) noexcept;
+  // A packet from the link (DxlPacketSink): an answer classified by when it came (before_request_).
+  void on_packet(dxl::DxlStatus s, const dxl::Packet& p, std::int64_t stamp_ns) noexcept override;
   void handle_status(const dxl::Packet& p, std::int64_t stamp_ns, bool before_request) noexcept;
   bool send(const Command* cmd, std::int64_t until_ns) noexcept;
-  bool transact(const std::uint8_t* p, std::size_t n, std::uint8_t id, std::size_t params,
-                std::int64_t timeout_ns);
   std::vector<std::uint8_t> read_registers(int j, bool sensor, std::uint16_t addr,
                                            std::uint16_t len, std::int64_t timeout_ns);
   void write_registers(int j, bool sensor, std::uint16_t addr,
@@ -102,6 +109,7 @@ class XSeriesDriver final : public Driver {
   int sensor_offset_ = 100;
   double k_t_ = 1.78;
   bool set_mode_ = true;
+  int stale_limit_ = 8;                // SerialConfig::max_stale_cycles [cycles]
   std::uint8_t return_delay_steps_ = 0;
   std::uint8_t watchdog_steps_ = 25;   // Bus Watchdog to set [20 ms]
   std::int64_t write_timeout_ns_ = 0;
@@ -109,12 +117,12 @@ class XSeriesDriver final : public Driver {
   std::array<double, kMaxJoints> lsb_{};           // Goal Current LSB per servo [A]
 
   DriverCounters counters_{};
-  SilenceMeter silence_;
+  DxlLink link_;                     // the byte stream (shared with the pedalwave modules' driver)
+  bool before_request_ = false;      // receiving what waited before this cycle's Bulk Read
   std::uint64_t cycle_ = 0;
   std::int64_t deadline_ns_ = 0;
   std::int64_t sample_ns_ = 0;       // this cycle's sample time (Bulk Read arrival) [ns]
   std::int64_t stamp_ns_ = 0;        // newest fresh reception this cycle [ns]
-  bool garbage_run_ = false;
   int fresh_packets_ = 0;            // status packets of this cycle's Bulk Read received [-]
   std::array<bool, kMaxJoints> got_servo_{}, got_sensor_{};
   std::array<dxl::x::ServoFeedback, kMaxJoints> servo_{};   // this cycle's
@@ -135,6 +143,7 @@ class XSeriesDriver final : public Driver {
   // The sample handed out last (what write() evaluates the law on).
   std::array<double, kMaxJoints> beta_{}, beta_dot_{}, deflection_{};
   std::array<bool, kMaxJoints> have_sample_{};
+  std::array<std::uint64_t, kMaxJoints> age_{};  // cycles since that sample's Bulk Read [-]
   // Commands: per servo whether its torque is on, the last goal, and what was applied when.
   std::array<bool, kMaxJoints> torque_on_{};
   std::array<std::int16_t, kMaxJoints> goal_{};
@@ -147,12 +156,9 @@ class XSeriesDriver final : public Driver {
   std::size_t bulk_len_ = 0;
   std::int64_t bulk_wire_ns_ = 0;
   std::int64_t min_reply_ns_ = 0;  // wire time of the shortest status packet [ns]
-  std::array<std::uint8_t, 4096> rx_{};
-  std::size_t rx_len_ = 0;
   std::array<std::uint8_t, 3 * dxl::kMaxPacket> tx_{};
   std::array<std::uint8_t, kMaxJoints * 2> data_{};
   std::array<std::uint8_t, kMaxJoints> sel_ids_{};
-  dxl::Packet pkt_{};
 };
 
 }  // namespace pedalwave::drivers

@@ -58,6 +58,7 @@ class FaultInjectingDriver final : public Driver {
   IoStatus write(const Command& cmd) override;
   void safe_stop() override { inner_.safe_stop(); }
   const DriverCounters& counters() const override { return inner_.counters(); }
+  FeedbackSpec feedback_spec() const override { return inner_.feedback_spec(); }
 
   // Time of the last read() since the first one [s].
   double time() const { return t_; }

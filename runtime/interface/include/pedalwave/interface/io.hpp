@@ -30,6 +30,30 @@ enum StatusBit : std::uint16_t {
                                   // older SYNC arrived: timing, not a module fault (with Missing)
   kStatusNoTiming = 1u << 10,     // fresh data, but the module's timing record did not arrive:
                                   // sample_ns / applied_* of this joint are unknown this cycle
+  kStatusStaleFeedback = 1u << 11,  // the values are held from a sample more than the driver's
+                                    // FeedbackSpec::stale_limit cycles old: a law evaluated on the
+                                    // host is blind for this joint (with kStatusMissing)
+};
+
+// What a driver declares about its feedback (Driver::feedback_spec(), known after configuration):
+// the resolution of each quantity as its sensors and wire deliver it, and how long it lets a
+// host-side law act on a held sample. A field of 0 is not declared (continuous, or a driver that
+// does not say): the observer then keeps its configured thresholds for it
+// (runtime/observer/README.md §1.3 derives them from these).
+struct FeedbackSpec {
+  double beta_lsb = 0.0;        // motor angle β: one count [rad]
+  double beta_dot_lsb = 0.0;    // motor rate β̇: one count [rad/s]
+  double deflection_lsb = 0.0;  // spring deflection: one count [rad]
+  double torque_lsb = 0.0;      // applied torque: one count of what the actuator is given (the
+                                // command's quantization at the actuator) [N·m]
+  // How far a reported sample time (Feedback::sample_ns) may be from when the device really
+  // sampled [s]: 0 for modules that stamp their samples on their own clock; a device sampled when
+  // the host's request reaches it, stamped by the host, is off by the request's delivery jitter.
+  double sample_time_uncertainty = 0.0;
+  // The driver evaluates a law on the host (a stock servo's current command): a joint whose last
+  // sample is more than this many cycles old gets no torque from that law and is flagged
+  // kStatusStaleFeedback [cycles]; 0 = the law runs in the modules, not the driver's concern.
+  int stale_limit = 0;
 };
 
 // How the driver knows when the modules sampled and when they applied the commands.
@@ -161,6 +185,12 @@ struct DriverCounters {
                                    // (SocketCAN SO_RXQ_OVFL; serial: input overrun)
   std::int64_t rx_silence_max_ns = 0;  // the link's longest silence: the longest interval between
                                        // two receptions of anything (bytes, frames) [ns]
+  // Held samples (drivers that evaluate a law on the host, FeedbackSpec::stale_limit > 0): joint-
+  // cycles whose values were held from an earlier cycle's sample (missing, or a late answer used),
+  // the oldest sample a law was evaluated on, and joint-cycles beyond the limit (no torque given).
+  std::uint64_t held = 0;          // [joint-cycles]
+  std::uint64_t held_age_max = 0;  // [cycles] (1: the previous cycle's sample)
+  std::uint64_t stale_feedback = 0;  // [joint-cycles]
 };
 
 // Keeps DriverCounters::rx_silence_max_ns: call on_rx(t) whenever something arrived at t.
@@ -197,6 +227,9 @@ class Driver {
   // Safe command on every exit path: torque off (or hold) sent before the bus is let go.
   virtual void safe_stop() = 0;
   virtual const DriverCounters& counters() const = 0;
+  // Resolution and host-law staleness of the feedback (above); before the loop. Default: nothing
+  // declared.
+  virtual FeedbackSpec feedback_spec() const { return {}; }
 };
 
 }  // namespace pedalwave::drivers

@@ -42,6 +42,7 @@ enum class FaultClass : std::uint8_t {
   kSaturation,         // persistent torque saturation
   kOverrun,            // cycle deadline missed persistently
   kException,          // an exception escaped a stage or the driver (caught at the loop boundary)
+  kStaleFeedback,      // a host-side law's feedback older than the driver's limit (X-series bus)
   kCount
 };
 const char* to_string(FaultClass f) noexcept;

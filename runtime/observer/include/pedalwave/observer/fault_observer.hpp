@@ -107,6 +107,15 @@ struct ObserverParams {
   int noise_spikes = 2;         // further spikes within jump_window → noise burst [-]
   double saturation_fraction = 0.8;  // low-passed saturated indicator above this → fault [-]
   double saturation_tau = 0.1;       // its time constant [s]
+  // ---- Sensor resolution (README §1.3): declared by the driver (drivers::FeedbackSpec) ----
+  // Each threshold is at least what the declared quantization can produce in a healthy run: the
+  // consistency check's |c| ≤ LSB_β + dt·LSB_β̇/2 and the hold rule's apparent motion
+  // ≤ LSB_β + hold_cycles·T·LSB_β̇/2 are hard bounds (× quantization_margin); the residual's
+  // floor is quantization_sigmas × its σ from β, β̇ through J and k_d plus its bounded share
+  // (torque LSB/2, k_p·LSB_β/2, K·LSB_def/2). Not declared (0): the configured thresholds alone.
+  drivers::FeedbackSpec feedback{};
+  double quantization_margin = 2.0;  // [-]
+  double quantization_sigmas = 5.0;  // [-]
   // ---- Link side / body prediction ----
   bool body_model = true;       // run the onboard body model (predicted θ_N, p, τ_ext)
   model::Ground ground;         // nominal terrain of the body model (no obstacles)
@@ -133,6 +142,7 @@ struct ObserverParams {
     set(FaultClass::kSaturation, Severity::kWarning);
     set(FaultClass::kOverrun, Severity::kDegrade);
     set(FaultClass::kException, Severity::kStop);
+    set(FaultClass::kStaleFeedback, Severity::kStop);      // the host's PD is blind: torque off
     return s;
   }
 };
@@ -196,6 +206,17 @@ class FaultObserver {
   // time inside them was only estimated, too coarsely for the residual (Interval::estimate_bound)
   // since reset() [-].
   std::uint64_t intervals_estimated() const { return intervals_estimated_; }
+  // The thresholds in use with the declared resolution (ObserverParams::feedback; README §1.3):
+  // the consistency threshold over one nominal period [rad], the hold rule's motion [rad], the
+  // residual's threshold with k_d = 0 (a torque command) [N·m]. Without a declaration: the
+  // configured ones.
+  double consistency_threshold_used(double beta_dot = 0.0) const {
+    return consistency_limit(p_.period, false, beta_dot);
+  }
+  double hold_motion_used() const { return hold_motion_; }
+  double r_threshold_used(double kd = 0.0, double kp = 0.0) const {
+    return residual_limit(p_.period, kd, kp);
+  }
   const FaultRecord* faults() const { return latched_.data(); }
   int fault_count() const { return n_latched_; }
   // The most severe latched fault (ties: the earliest), or nullptr.
@@ -231,10 +252,18 @@ class FaultObserver {
                      double dt, Interval& iv);
   void residual_step(const drivers::Feedback& fb, const Interval& iv, int j, double t);
   void classify(int j, double t);
+  // The consistency threshold over an interval dt [rad] (stretched: a measured interval longer
+  // than a period), and the residual's over dt with the module law's gains k_d, k_p [N·m]: the
+  // configured ones, or the declared quantization's floor where that is higher (README §1.3).
+  // beta_dot: the larger |β̇| of the interval's ends [rad/s] (a sample time off by ε moves c by
+  // ε·β̇ at each end).
+  double consistency_limit(double dt, bool stretched, double beta_dot) const;
+  double residual_limit(double dt, double kd, double kp) const;
 
   ObserverParams p_;
   int joints_ = 0;
   double J_ = 0.0;  // n² I_r [kg·m²]
+  double hold_motion_ = 0.0;  // hold rule's motion with the declared β, β̇ resolution [rad]
   std::array<double, kMaxJoints> K_{};
   std::unique_ptr<Joint[]> jt_;
   std::array<double, kMaxJoints> r_{}, tau_ext_{}, c_{}, sat_lp_{};

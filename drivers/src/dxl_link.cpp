@@ -7,7 +7,7 @@
 #include <cstring>
 #include <span>
 
-#include "posix_util.hpp"
+#include "pedalwave/drivers/posix_util.hpp"
 
 namespace pedalwave::drivers {
 

@@ -11,7 +11,7 @@
 #include <cstdint>
 
 #include "pedalwave/drivers/dynamixel.hpp"
-#include "pedalwave/drivers/io.hpp"
+#include "pedalwave/interface/io.hpp"
 
 namespace pedalwave::drivers {
 

@@ -258,9 +258,14 @@ TEST_F(Paper, AllRunsEndToEndWithEveryTableRowAndFiniteNumbers) {
                         "sensitivity.md", "sweep.csv", "flat_com.svg", "friction_torque.svg",
                         "stair_shapes_kc0.svg", "stair_shapes_kc10.1.svg", "stair_film_kc0.svg",
                         "stair_progress.svg", "sweep_speed.svg", "sensitivity_K.svg", "stair_grip/stair.md",
-                        "stair_grip/sweep.md", "stair_grip/sweep.csv", "stair_grip/stair_shapes_kc10.1.svg"})
+                        "stair_grip/sweep.md", "stair_grip/sweep.csv", "stair_grip/stair_shapes_kc10.1.svg",
+                        "paper_fit/flat.md", "paper_fit/friction.md", "paper_fit/stair.md", "paper_fit/sweep.md"})
     EXPECT_TRUE(fs::exists(out / f)) << f;
-  const std::string table = slurp(out / "paper_table.md");
+  const std::string both = slurp(out / "paper_table.md");
+  // The shipped scenes' table, then the fitted scenes' (config/scenes/paper_fit_*).
+  const auto second = both.find("## The fitted scenes beside today's assumptions");
+  ASSERT_NE(second, std::string::npos) << both;
+  const std::string table = both.substr(0, second), fitted = both.substr(second);
   const std::vector<std::string> cases{
       "flat, μ = 0.82: average speed", "flat, μ = 0.40: average speed", "speed gain μ = 0.82 over 0.40",
       "SEA torque-peak change after the head enters μ = 0.40", "stair, k_c = 10.1: average speed (60 s)",
@@ -288,6 +293,41 @@ TEST_F(Paper, AllRunsEndToEndWithEveryTableRowAndFiniteNumbers) {
   for (const char* n : {"**Flat speed**", "**Friction speed gain**", "**Torque-peak change**", "**Stair**",
                         "**k_c sweep**", "**Stair with a grippier edge"})
     EXPECT_NE(table.find(n), std::string::npos) << n;
+  // The fitted table: every row, its numbers finite, its shipped column the first table's "ours".
+  const std::vector<std::string> fcases{
+      "flat, μ = 0.82: average speed", "flat, μ = 0.40: average speed", "speed gain μ = 0.82 over 0.40",
+      "SEA torque-peak change after the head enters μ = 0.40", "stair, k_c = 10.1: average speed (60 s)",
+      "stair, k_c = 0: average speed (60 s)", "stair, k_c = 10.1: climb", "stair gain of k_c = 10.1 over k_c = 0",
+      "k_c sweep: best k_c, gain over k_c = 0"};
+  std::size_t frows = 0;
+  std::istringstream flines(fitted);
+  for (std::string line; std::getline(flines, line);)
+    if (line.rfind("| ", 0) == 0) ++frows;
+  EXPECT_EQ(frows, fcases.size() + 2) << fitted;
+  auto cells = [](const std::string& md, const std::string& c) {
+    const auto at = md.find("| " + c + " ");
+    std::vector<std::string> cs;
+    if (at == std::string::npos) return cs;
+    std::istringstream row(md.substr(at + 1, md.find('\n', at) - at - 1));
+    for (std::string cell; std::getline(row, cell, '|');) {
+      cell.erase(0, cell.find_first_not_of(' '));
+      cell.erase(cell.find_last_not_of(' ') + 1);
+      cs.push_back(cell);
+    }
+    return cs;
+  };
+  for (const std::string& c : fcases) {
+    const auto row = cells(fitted, c);
+    ASSERT_EQ(row.size(), 5u) << c << "\n" << fitted;
+    for (const std::string& cell : row) {
+      EXPECT_EQ(cell.find("nan"), std::string::npos) << c << ": " << cell;
+      EXPECT_EQ(cell.find("inf"), std::string::npos) << c << ": " << cell;
+    }
+    EXPECT_NE(row[4].find("--scene-prefix paper_fit_"), std::string::npos) << row[4];
+  }
+  EXPECT_EQ(cells(fitted, "flat, μ = 0.82: average speed")[2], cells(table, "flat, μ = 0.82: average speed")[3]);
+  EXPECT_NE(fitted.find("K = "), std::string::npos) << fitted;  // the fitted parameters' line
+  EXPECT_NE(fitted.find(", links "), std::string::npos) << fitted;
   EXPECT_NE(e.out.find("speed μ = 0.82: "), std::string::npos);
   EXPECT_EQ(e.out.find("nan"), std::string::npos) << e.out;
   EXPECT_EQ(e.out.find("STOPPED"), std::string::npos) << e.out;
@@ -301,7 +341,8 @@ TEST_F(Paper, BadInputExitsTwoWithOneLine) {
   for (const std::string args : {"sweep --step 0", "flat --integrator euler --h 0.01", "flat --integrator magic --h 1e-4",
                                  "flat --h 1e-4", "stair --stair-scene nowhere",
                                  "sensitivity --K 0", "sweep --from 3 --to 1", "nonsense", "stair --k_c 1e300",
-                                 "flat --duration inf", "flat --rate nan"}) {
+                                 "flat --duration inf", "flat --rate nan",
+                                 "flat --scene-prefix nothing_", "all --scene-prefix paper_fit_"}) {
     const Exit e = run_exe(args + " --quiet --out '" + (dir_ / "bad").string() + "'");
     EXPECT_EQ(e.code, 2) << args << ": " << e.err;
     EXPECT_NE(e.err.find("error"), std::string::npos) << args;

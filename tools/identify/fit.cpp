@@ -299,9 +299,18 @@ std::vector<std::pair<std::string, std::string>> Evaluator::fitted_scene_yaml(co
           for (std::size_t b = 0; b < n["obstacles"].size(); ++b) n["obstacles"][b][d.key] = p[i];
         continue;
       }
+      if (d.name == "module_size") continue;  // below: the key the shape uses
       if (d.choices.empty()) n[d.section][d.key] = p[i];
       else if (d.name == "friction_at") n[d.section][d.key] = std::lround(p[i]) == 1;
       else n[d.section][d.key] = d.choices[static_cast<std::size_t>(std::lround(p[i]))];
+    }
+    for (std::size_t i = 0; i < params_.size(); ++i) {
+      if (params_[i].def->name != "module_size") continue;
+      // The shape after the point (fitted or the scene's own): capsule → link_radius, box → link_height.
+      model::Scene sc = config::parse_scene(text, name);
+      for (std::size_t j = 0; j < params_.size(); ++j) params_[j].def->apply(sc, p[j]);
+      if (sc.robot.link_shape == model::LinkShape::kCapsule) n["robot"]["link_radius"] = sc.robot.link_radius;
+      if (sc.robot.link_shape == model::LinkShape::kBox) n["robot"]["link_height"] = sc.robot.link_height;
     }
     const std::string stem = fs::path(name).stem().string();
     n["name"] = "paper_fit_" + stem;

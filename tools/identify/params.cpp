@@ -46,7 +46,18 @@ std::vector<ParamDef> make_table() {
                                                       ? (s.boxes.empty() ? 0.82 : s.boxes.front().mu)
                                                       : s.boxes.front().edge_mu; },
                "friction of the box corners against the links (stair scenes only)"});
-  // Module size: add robot.link_radius / link_height here once robot.link_shape is in the model.
+  // Module size (README "Link shapes"): the contact solid around each link axis, and its size as one
+  // row — the surface's distance from the axis, i.e. the capsule's radius r or half the box's height
+  // h_m / 2 — so the same bound reads the same for both shapes and the row does not depend on the
+  // order in which a point's values are applied (it sets both; the shape picks which one counts).
+  t.push_back({"link_shape", "", "robot", "link_shape", false, {"segment", "capsule", "box"},
+               [](model::Scene& s, double v) { s.robot.link_shape = static_cast<model::LinkShape>(std::lround(v)); },
+               [](const model::Scene& s) { return static_cast<double>(s.robot.link_shape); },
+               "module contact solid: the axis (segment), a capsule, or a box around it"});
+  t.push_back({"module_size", "m", "robot", "link_radius", false, {},
+               [](model::Scene& s, double v) { s.robot.link_radius = v; s.robot.link_height = 2.0 * v; },
+               [](const model::Scene& s) { return s.robot.half_thickness(); },
+               "module half-thickness: capsule radius r = link_radius, or box link_height / 2"});
   return t;
 }
 

@@ -2,8 +2,8 @@
 //
 // Every scene parameter the tool can fit is one row of kParameterTable (params.cpp): its name, unit,
 // where it lives in a scene file (section.key), whether it is searched on a log scale, and how it is
-// applied to a model::Scene. A new scene parameter (e.g. robot.link_radius once the link geometry
-// lands) is one more row. A parameter is continuous (bounded) or a choice among words (friction
+// applied to a model::Scene. A new scene parameter is one more row (the module size, link_shape and
+// module_size, is the latest). A parameter is continuous (bounded) or a choice among words (friction
 // law, where friction acts): choices are enumerated, the continuous ones fitted for each.
 //
 // A fit's parameter file (YAML) says which parameters, their plausible bounds and the reason for

@@ -7,8 +7,9 @@
 //   pedalwave_paper sweep       [--from 0] [--to 15] [--step 0.1] [--duration 60] [--checks 4] [--check-h 1e-4]
 //   pedalwave_paper sensitivity [--K 1 3 10 30 100] [--I_r 1e-8 5e-8 2e-7] [--no-model-options] [--duration 60]
 //   pedalwave_paper all         [--duration 60] [--from --to --step --checks --check-h]
+//                               (also the fitted scenes paper_fit_* when --scenes has them: a second table)
 // Every subcommand also takes --out DIR (default out/paper), --scenes DIR, --jobs N, --integrator
-// NAME, --h s, --rate Hz, --no-plots, --quiet, and the campaign options of the sweep's runs
+// NAME, --h s, --rate Hz, --scene-prefix P (paper_fit_: the fitted scenes), --no-plots, --quiet, and the campaign options of the sweep's runs
 // (--backend local|slurm, --slurm-config FILE, --campaign-dir, --partition, --account, --time,
 // --cpus-per-task, --sbatch-opt, --chunk, --throttle, --max-retries, --poll: tools/common's
 // pedalwave/campaign/cli.hpp). `pedalwave_paper campaign-worker --dir D --task I` is the entry of
@@ -47,6 +48,7 @@ struct Common {
   double h = 0.0;
   double rate = 1000.0;
   std::string stair_scene = "stair";
+  std::string scene_prefix;
   bool no_plots = false;
   bool quiet = false;
   pedalwave::campaign::cli::CliOptions campaign;
@@ -68,6 +70,9 @@ void add_common(CLI::App* sub, Common& c) {
   sub->add_option("--stair-scene", c.stair_scene,
                   "box scene of stair and sweep: a name in --scenes (e.g. stair_grip) or a path to a .yaml file")
       ->capture_default_str();
+  sub->add_option("--scene-prefix", c.scene_prefix,
+                  "prepended to the scene names in --scenes: paper_fit_ runs the identification's fitted scenes "
+                  "(all runs both: the shipped scenes, then the paper_fit_* ones into DIR/paper_fit)");
   sub->add_flag("--no-plots", c.no_plots, "write no figures");
   sub->add_flag("--quiet", c.quiet, "no progress bars");
   // Default campaign folder: <--out>/campaign (an empty dir here).
@@ -85,6 +90,7 @@ paper::Settings settings(const Common& c) {
   }
   s.rate_hz = c.rate;
   s.stair_scene = c.stair_scene;
+  s.scene_prefix = c.scene_prefix;
   s.plots = !c.no_plots;
   s.progress = !c.quiet;
   s.campaign = pedalwave::campaign::cli::options(c.campaign, c.jobs, s.progress);
@@ -171,6 +177,9 @@ int main(int argc, char** argv) {
     if (s.integ)  // the rule pedalwave_sim and the daemon use (simloop/plant_checks.hpp)
       if (const std::string why = simloop::step_problem(*s.integ, s.rate_hz, "1/rate"); !why.empty())
         throw std::invalid_argument("--h " + std::to_string(s.integ->h) + ": " + why);
+    if (*all && !s.scene_prefix.empty())
+      throw std::invalid_argument("--scene-prefix " + s.scene_prefix +
+                                  ": not with all (it runs the shipped scenes, then the paper_fit_* ones)");
     (void)paper::sweep_grid(sw.from, sw.to, sw.step);
     if (const auto f = paper::scene_file(s, s.stair_scene); !std::filesystem::exists(f))
       throw std::invalid_argument("--stair-scene " + s.stair_scene + ": no scene file " + f.string());

@@ -66,9 +66,13 @@ std::string describe(const model::IntegratorOptions& i) {
 
 std::string describe_integ(const Settings& s, const model::Scene& sc) { return describe(integ_of(s, sc)); }
 
+// " --scene-prefix P" when the scenes are not the shipped ones (commands in the Markdown).
+std::string prefix_arg(const Settings& s) {
+  return s.scene_prefix.empty() ? std::string() : " --scene-prefix " + s.scene_prefix;
+}
 // " --stair-scene NAME" when the box scene is not the shipped stair (commands in the Markdown).
 std::string stair_arg(const Settings& s) {
-  return s.stair_scene == "stair" ? std::string() : " --stair-scene " + s.stair_scene;
+  return prefix_arg(s) + (s.stair_scene == "stair" ? std::string() : " --stair-scene " + s.stair_scene);
 }
 
 // Runs the specs over s.jobs threads with a progress bar; results in spec order.
@@ -213,7 +217,7 @@ double patch_x(const model::Scene& sc) {
 std::filesystem::path scene_file(const Settings& s, const std::string& name) {
   // A path (a folder in it, or a .yaml name) is taken as given: /path/x.yaml, not x.yaml.yaml.
   if (name.find('/') != std::string::npos || name.ends_with(".yaml")) return name;
-  return s.scenes_dir / (name + ".yaml");
+  return s.scenes_dir / (s.scene_prefix + name + ".yaml");
 }
 
 model::Scene load(const Settings& s, const std::string& name) {
@@ -262,7 +266,7 @@ FlatResult flat(const Settings& s, double duration) {
     save(s, fig, "flat_com.svg");
   }
   std::ostringstream md;
-  md << "### Flat ground (`pedalwave_paper flat`)\n\n"
+  md << "### Flat ground (`pedalwave_paper flat" << prefix_arg(s) << "`)\n\n"
      << "Average forward speed of the whole-robot COM over t = " << fmt(f.avg_from) << " … "
      << fmt(duration) << " s (the first gait period 2π/ω = " << fmt(f.avg_from)
      << " s excluded), open-loop gait (k_c = 0), " << describe(specs[0].integ) << ", control " << fmt(s.rate_hz)
@@ -332,8 +336,8 @@ FrictionResult friction(const Settings& s, double duration) {
     save(s, fig, "friction_torque.svg");
   }
   std::ostringstream md;
-  md << "### Friction change (`pedalwave_paper friction`)\n\n"
-     << "Scene `friction_change`: μ = 0.82, then " << fmt(sc.ground.patches.front().mu, 2) << " from x = "
+  md << "### Friction change (`pedalwave_paper friction" << prefix_arg(s) << "`)\n\n"
+     << "Scene `" << s.scene_prefix << "friction_change`: μ = 0.82, then " << fmt(sc.ground.patches.front().mu, 2) << " from x = "
      << fmt(f.cross_x) << " m; " << fmt(f.duration) << " s, open-loop gait, " << describe_integ(s, sc)
      << ". The head tip reaches the low-friction surface at t = " << secs(f.t_cross)
      << ". Negative peaks of the head joint's SEA torque K(β − α) (one per gait period: the minimum "
@@ -427,7 +431,7 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
   log(s) << "== stair: k_c ";
   for (double k : k_c) log(s) << fmt(k) << ' ';
   const model::Scene sc = load(s, s.stair_scene);
-  log(s) << "on " << s.stair_scene << " (" << duration << " s, " << describe_integ(s, sc) << ")\n";
+  log(s) << "on " << s.scene_prefix << s.stair_scene << " (" << duration << " s, " << describe_integ(s, sc) << ")\n";
   std::vector<RunSpec> specs;
   for (double k : k_c) specs.push_back(make_spec(s, sc, duration, k, 0.05));
   for (double h : heights)
@@ -506,7 +510,7 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
     save(s, fig, "stair_progress.svg");
   }
   std::ostringstream md;
-  md << "### Stair (`pedalwave_paper stair" << stair_arg(s) << "`, scene `" << s.stair_scene << "`)\n\n"
+  md << "### Stair (`pedalwave_paper stair" << stair_arg(s) << "`, scene `" << s.scene_prefix << s.stair_scene << "`)\n\n"
      << "Box " << fmt((e0.x_far - e0.x_near) * 100) << " cm wide, " << fmt(e0.top * 100)
      << " cm high, x = " << fmt(e0.x_near) << " … " << fmt(e0.x_far) << " m (5 cm ahead of the head); "
      << fmt(duration) << " s, " << describe_integ(s, sc) << ". *Head on top*: the head tip over the top "
@@ -556,7 +560,7 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
   const auto grid = sweep_grid(o.from, o.to, o.step);
   const model::Scene sc = load(s, s.stair_scene);
   const std::string sc_text = read_file(scene_file(s, s.stair_scene));
-  log(s) << "== k_c sweep over " << s.stair_scene << ": " << grid.size() << " runs, k_c = " << fmt(o.from) << " … "
+  log(s) << "== k_c sweep over " << s.scene_prefix << s.stair_scene << ": " << grid.size() << " runs, k_c = " << fmt(o.from) << " … "
          << fmt(o.to) << " step " << fmt(o.step) << ", " << o.duration << " s each, " << describe_integ(s, sc)
          << ", "
          << (s.campaign.backend == campaign::Backend::slurm
@@ -818,7 +822,88 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
 }
 
 // ================================================================================================
-std::string paper_table(const AllResult& r, std::size_t* rows) {
+namespace {
+
+// The fitted scenes beside the shipped ones: the same measures from the same experiments.
+std::string fitted_table(const AllResult& r, std::size_t* rows) {
+  const FittedResult& f = *r.fitted;
+  auto at = [](const StairResult& st, double k_c) {
+    for (const StairCase& c : st.cases)
+      if (c.k_c == k_c) return c.run.avg_speed;
+    return kNaN;
+  };
+  auto climb = [](const StairResult& st, double k_c) {
+    for (const StairCase& c : st.cases)
+      if (c.k_c == k_c)
+        return "COM past " + secs(c.run.stair.t_com_past) + ", whole body past " + secs(c.run.stair.t_body_past);
+    return std::string("—");
+  };
+  auto best = [](const SweepResult& sw) {
+    if (sw.best >= sw.points.size()) return std::string("—");
+    return fmt(sw.points[sw.best].k_c) + ", " + pct(sw.gain);
+  };
+  const double s1 = at(r.stair, PaperValues::kBestKc), s0 = at(r.stair, 0.0);
+  const double f1 = at(f.stair, PaperValues::kBestKc), f0 = at(f.stair, 0.0);
+  const std::string p = " --scene-prefix " + f.prefix;
+  tk::Table t({"case", "paper's simulation", "shipped scenes (today's assumptions)",
+               "fitted scenes (`" + f.prefix + "*`)", "command (fitted)"});
+  std::vector<std::string> notes;
+  // A row and, where the fitted figure is not the paper's within its target tolerance
+  // (config/identify/paper_targets.yaml), a sentence giving the difference.
+  auto row = [&](const std::string& c, double paper, double shipped, double fitted, bool percent, double tol,
+                 const std::string& cmd) {
+    const auto show = [&](double v) { return percent ? pct(v) : cms(v); };
+    t.add_row({c, show(paper), show(shipped), show(fitted), "`pedalwave_paper " + cmd + p + "`"});
+    const double d = fitted - paper;
+    if (!(std::abs(d) <= tol))
+      notes.push_back("**" + c + "**: fitted " + show(fitted) + " against the paper's " + show(paper) + " (" +
+                      (percent ? fixed(d * 100, 1) + " points" : (d > 0 ? "+" : "") + fixed(d * 100, 2) + " cm/s") +
+                      ", " + (std::isfinite(d) ? fmt(std::abs(d) / tol, 2) : std::string("—")) +
+                      " tolerances); shipped " + show(shipped) + ".");
+  };
+  row("flat, μ = 0.82: average speed", PaperValues::kFlatSpeedSim, r.flat.v_high, f.flat.v_high, false, 0.001, "flat");
+  t.add_row({"flat, μ = 0.40: average speed", "≈ 1.92 cm/s", cms(r.flat.v_low), cms(f.flat.v_low),
+             "`pedalwave_paper flat" + p + "`"});
+  row("speed gain μ = 0.82 over 0.40", PaperValues::kFrictionGainSim, r.flat.gain, f.flat.gain, true, 0.02, "flat");
+  row("SEA torque-peak change after the head enters μ = 0.40", PaperValues::kPeakChangeSim, r.friction.change,
+      f.friction.change, true, 0.03, "friction");
+  row("stair, k_c = 10.1: average speed (60 s)", PaperValues::kStairSpeedSim, s1, f1, false, 0.002, "stair");
+  t.add_row({"stair, k_c = 0: average speed (60 s)", "≈ 1.71 cm/s", cms(s0), cms(f0), "`pedalwave_paper stair" + p + "`"});
+  t.add_row({"stair, k_c = 10.1: climb", "climbs (Fig. 10)", climb(r.stair, PaperValues::kBestKc),
+             climb(f.stair, PaperValues::kBestKc), "`pedalwave_paper stair" + p + "`"});
+  row("stair gain of k_c = 10.1 over k_c = 0", PaperValues::kStairGainSim, s1 / s0 - 1.0, f1 / f0 - 1.0, true, 0.05,
+      "stair");
+  t.add_row({"k_c sweep: best k_c, gain over k_c = 0", "10.1, +24.8 %", best(r.sweep), best(f.sweep),
+             "`pedalwave_paper sweep" + p + "`"});
+  if (f.sweep.best < f.sweep.points.size() && std::abs(f.sweep.points[f.sweep.best].k_c - PaperValues::kBestKc) > 1.0)
+    notes.push_back("**Best k_c**: fitted " + fmt(f.sweep.points[f.sweep.best].k_c) + " against the paper's 10.1 (gain " +
+                    pct(f.sweep.gain) + " against +24.8 %).");
+  if (rows) *rows = t.rows();
+  std::ostringstream md;
+  md << "## The fitted scenes beside today's assumptions (`pedalwave_paper all`, `" << f.prefix << "*`)\n\n"
+     << "Fitted by `pedalwave_identify fit` to the paper's simulated figures (config/identify/): " << f.parameters
+     << ". Tolerances as in paper_targets.yaml (0.1 cm/s flat, 2 / 3 points, 0.2 cm/s stair, 5 points).\n\n"
+     << t.to_markdown() << '\n';
+  if (notes.empty()) md << "Every fitted figure is the paper's within its tolerance.\n";
+  for (const std::string& n : notes) md << "- " << n << '\n';
+  return md.str();
+}
+
+// The fitted values of a scene, as one line (the identification's parameters).
+std::string scene_parameters(const model::Scene& sc) {
+  std::ostringstream os;
+  os << "K = " << fmt(sc.robot.stiffness(0)) << " N·m/rad, I_l = " << fmt(sc.robot.I_l) << " kg·m², I_r = "
+     << fmt(sc.robot.I_r) << " kg·m², ground k = " << fmt(sc.ground.k) << " N/m, d = " << fmt(sc.ground.d)
+     << " N·s/m, " << model::to_string(sc.ground.law) << " friction, v_s = " << fmt(sc.ground.v_s) << " m/s, at the "
+     << (sc.ground.friction_at_com ? "link COMs" : "contact points") << ", links " << model::to_string(sc.robot.link_shape);
+  if (sc.robot.link_shape == model::LinkShape::kCapsule) os << " r = " << fmt(sc.robot.link_radius * 1000) << " mm";
+  if (sc.robot.link_shape == model::LinkShape::kBox) os << " h_m = " << fmt(sc.robot.link_height * 1000) << " mm";
+  return os.str();
+}
+
+}  // namespace
+
+std::string paper_table(const AllResult& r, std::size_t* rows, std::size_t* fitted_rows) {
   // Ranges of a measure over the sensitivity rows of one parameter.
   auto range = [&](const std::string& param, double SensitivityRow::*field, bool percent) {
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
@@ -985,6 +1070,8 @@ std::string paper_table(const AllResult& r, std::size_t* rows) {
         "I_l = m_l (2l)²/12 (all three unpublished; model-spec.md §8), speed averaged from one gait period "
         "(2 s) on.\n\n";
   for (const std::string& n : notes) md << "- " << n << '\n';
+  if (fitted_rows) *fitted_rows = 0;
+  if (r.fitted) md << '\n' << fitted_table(r, fitted_rows);
   return md.str();
 }
 
@@ -1003,12 +1090,39 @@ AllResult all(const Settings& s, const AllOptions& o) {
     r.sweep_grip = sweep(g, o.sweep);
   }
   r.sensitivity = sensitivity(s, o.sensitivity);
-  r.table = paper_table(r, &r.table_rows);
+  if (!o.fitted_prefix.empty()) {
+    // The identification's fitted scenes, when --scenes has them (into out_dir/<prefix without _>).
+    Settings f = s;
+    f.scene_prefix = o.fitted_prefix;
+    f.stair_scene = "stair";
+    std::string dir = o.fitted_prefix;
+    while (!dir.empty() && dir.back() == '_') dir.pop_back();
+    f.out_dir = s.out_dir / dir;
+    bool have = true;
+    for (const char* n : {"flat_high_friction", "flat_low_friction", "friction_change", "stair"})
+      have = have && fs::exists(scene_file(f, n));
+    if (have) {
+      FittedResult fr;
+      fr.prefix = o.fitted_prefix;
+      fr.parameters = scene_parameters(load(f, "stair"));
+      fr.flat = flat(f, o.flat_duration);
+      fr.friction = friction(f, o.friction_duration);
+      fr.stair = stair(f, o.stair_duration, {0.0, PaperValues::kBestKc}, 1.5, {});
+      fr.sweep = sweep(f, o.sweep);
+      r.fitted = std::move(fr);
+    } else {
+      log(s) << "== no " << o.fitted_prefix << "* scenes in " << s.scenes_dir.string() << ": no fitted table\n";
+    }
+  }
+  r.table = paper_table(r, &r.table_rows, &r.fitted_rows);
   write_text(s.out_dir / "paper_table.md", r.table);
   std::ostringstream all_md;
   all_md << r.table << '\n' << r.flat.markdown << '\n' << r.friction.markdown << '\n' << r.stair.markdown << '\n'
          << r.sweep.markdown << '\n' << r.stair_grip.markdown << '\n' << r.sweep_grip.markdown << '\n'
          << r.sensitivity.markdown;
+  if (r.fitted)
+    all_md << '\n' << r.fitted->flat.markdown << '\n' << r.fitted->friction.markdown << '\n'
+           << r.fitted->stair.markdown << '\n' << r.fitted->sweep.markdown;
   write_text(s.out_dir / "paper.md", all_md.str());
   log(s) << "== wrote " << (s.out_dir / "paper_table.md").string() << " and " << (s.out_dir / "paper.md").string() << '\n';
   return r;

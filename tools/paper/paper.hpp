@@ -42,6 +42,9 @@ struct Settings {
   // Plant integrator for every run; unset = each scene's own (its `integrator:`, chosen by the
   // work-precision study to stay within 1 mm of the reference: tools/workprec/README.md).
   std::optional<model::IntegratorOptions> integ;
+  // Prepended to every scene name (not to a path): "paper_fit_" runs the identification's fitted
+  // scenes (config/scenes/paper_fit_*.yaml) in place of the shipped assumptions.
+  std::string scene_prefix;
   std::string stair_scene = "stair";         // the box scene of `stair` and `sweep` (`all` also runs
                                              // "stair_grip", the calibrated edge friction, into
                                              // out_dir/stair_grip)
@@ -183,6 +186,18 @@ struct AllOptions {
   double flat_duration = 60.0, friction_duration = 0.0, stair_duration = 60.0;
   SweepOptions sweep;
   SensitivityOptions sensitivity;
+  // The fitted scenes (pedalwave_identify fit --write-scenes): flat, friction, stair and sweep run
+  // again with this scene prefix into out_dir/paper_fit, when --scenes has all four files; empty = not.
+  std::string fitted_prefix = "paper_fit_";
+};
+// The same experiments on another scene set (AllOptions::fitted_prefix), for the second table.
+struct FittedResult {
+  std::string prefix;          // "paper_fit_"
+  std::string parameters;      // the fitted values, as one line
+  FlatResult flat;
+  FrictionResult friction;
+  StairResult stair;
+  SweepResult sweep;
 };
 struct AllResult {
   FlatResult flat;
@@ -192,12 +207,16 @@ struct AllResult {
   StairResult stair_grip;      // the same on "stair_grip" (out_dir/stair_grip)
   SweepResult sweep_grip;
   SensitivityResult sensitivity;
+  std::optional<FittedResult> fitted;  // the fitted scenes (unset: not run)
   std::string table;           // out_dir/paper_table.md
   std::size_t table_rows = 0;  // rows of the comparison table
+  std::size_t fitted_rows = 0; // rows of the fitted scenes' table (0: none)
 };
 AllResult all(const Settings& s, const AllOptions& o);
 
 // The comparison table (Markdown, with a sentence per difference) from the results.
-std::string paper_table(const AllResult& r, std::size_t* rows = nullptr);
+// With r.fitted, a second table follows: the paper's simulation, the shipped scenes and the fitted
+// ones side by side (fitted_rows: its rows).
+std::string paper_table(const AllResult& r, std::size_t* rows = nullptr, std::size_t* fitted_rows = nullptr);
 
 }  // namespace pedalwave::paper

@@ -111,6 +111,33 @@ TEST(IdentifyFit, EvaluationsAreDeterministicAcrossThreadsAndBatches) {
   fs::remove_all(d);
 }
 
+// The module size reaches the simulation: the shape (a choice) and its size (one row: capsule radius,
+// half the box height) change the flat speed a fit evaluation computes; the size changes nothing
+// with the segment (it has no surface); and the fitted scene files carry the key the shape uses.
+TEST(IdentifyFit, ModuleShapeAndSizeReachTheScene) {
+  const fs::path d = temp_dir("shape");
+  const auto pf = write(d / "p.yaml",
+                        "parameters:\n  - {name: link_shape, choices: [segment, capsule, box], reason: test}\n"
+                        "  - {name: module_size, min: 0.005, max: 0.025, reason: test}\n");
+  const auto tf = write(d / "t.yaml", "targets:\n  - {measure: flat_speed, value: 0.02, tolerance: 0.001}\n");
+  Evaluator ev(load_params(pf.string()), load_targets(tf.string()), short_settings(2));  // flat 4 s
+  const auto m = ev.evaluate({{0, 0.005}, {0, 0.02}, {1, 0.005}, {1, 0.02}, {2, 0.02}}, "shape");
+  for (const Measures& x : m) ASSERT_TRUE(std::isfinite(x.v_flat_high));
+  EXPECT_EQ(m[0].v_flat_high, m[1].v_flat_high);  // a segment has no size
+  EXPECT_NE(m[0].v_flat_high, m[2].v_flat_high);  // a capsule is not a segment
+  EXPECT_NE(m[2].v_flat_high, m[3].v_flat_high);  // its radius matters
+  EXPECT_NE(m[3].v_flat_high, m[4].v_flat_high);  // a box is not a capsule
+  for (const auto& [shape, key] : {std::pair{1, "link_radius"}, std::pair{2, "link_height"}}) {
+    const auto files = ev.fitted_scene_yaml({static_cast<double>(shape), 0.02});
+    ASSERT_EQ(files.size(), 1u);
+    const model::Scene sc = config::parse_scene(files.front().second, files.front().first);
+    EXPECT_EQ(static_cast<int>(sc.robot.link_shape), shape) << files.front().second;
+    EXPECT_NEAR(sc.robot.half_thickness(), 0.02, 1e-12) << key << "\n" << files.front().second;
+    EXPECT_NE(files.front().second.find(key), std::string::npos) << files.front().second;
+  }
+  fs::remove_all(d);
+}
+
 // A target made by the simulator at ground k = 700 N/m (flat speed, 4 s runs): the fit (started at
 // the shipped 350 N/m, one parameter, LN_SBPLX) must find it again. The tolerance, 0.01 cm/s, is
 // what the simulation resolves as a smooth function of k (the speed wiggles by ~0.005 cm/s between

@@ -748,4 +748,17 @@ void CanOpenDriver::safe_stop() {
   put(sync);
 }
 
+FeedbackSpec CanOpenDriver::feedback_spec() const {
+  FeedbackSpec f;
+  for (int j = 0; j < joints(); ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    f.beta_lsb = std::max(f.beta_lsb, rad_per_inc_[ju]);
+    f.beta_dot_lsb = std::max(f.beta_dot_lsb, rad_per_inc_[ju]);  // 606Ch: increments/s
+    f.deflection_lsb = std::max(f.deflection_lsb, defl_rad_per_inc_[ju]);
+    f.torque_lsb = std::max(f.torque_lsb, nm_per_permille_[ju]);
+  }
+  f.sample_time_uncertainty = 1e-3;
+  return f;
+}
+
 }  // namespace pedalwave::drivers

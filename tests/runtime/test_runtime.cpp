@@ -266,6 +266,37 @@ TEST(Calibration, ValidationNamesTheItem) {
   EXPECT_THROW(std::make_unique<Runtime>(cfg, d, c), std::invalid_argument);
 }
 
+// ---- No walking before every joint has reported ---------------------------------------------------
+TEST(Runtime, AutoStartWaitsUntilEveryJointHasReported) {
+  Rig rig(lockstep_config(100));
+  rig.driver.missing_from = 0;  // joint 2 silent for the first 10 reads
+  rig.driver.missing_until = 10;
+  rig.driver.missing_joint = 2;
+  rig.run();
+  const EventSample* running = rig.event_to(Mode::kRunning);
+  ASSERT_NE(running, nullptr);
+  EXPECT_EQ(running->seq, 10u) << "RUNNING in the first cycle joint 2 reported";
+  EXPECT_EQ(rig.driver.torque_off_writes, 10u) << "torque off until then";
+  rig.expect_safe_exit();
+}
+
+TEST(Operator, StartBeforeEveryJointHasReportedIsRejected) {
+  RuntimeConfig cfg = lockstep_config(100);
+  cfg.auto_start = false;
+  Rig rig(cfg);
+  rig.driver.missing_from = 0;
+  rig.driver.missing_until = 50;
+  rig.driver.missing_joint = 4;
+  OperatorCommand go;
+  go.kind = OperatorCommandKind::kStartWalking;
+  ASSERT_TRUE(rig.runtime->post(go));
+  rig.run();
+  EXPECT_TRUE(rig.has_event_text("start walking rejected: a joint has not reported any feedback yet"));
+  EXPECT_EQ(rig.event_to(Mode::kRunning), nullptr);
+  EXPECT_EQ(rig.controller.controls, 0u);
+  rig.expect_safe_exit();
+}
+
 // ---- Normal operation ------------------------------------------------------------------------------
 TEST(Runtime, ReadyWritesTorqueOffUntilTheOperatorStarts) {
   RuntimeConfig cfg = lockstep_config(50);

@@ -1,5 +1,5 @@
 // The CANopen walk over a real kernel CAN interface (vcan0): the daemon with the CANopen master
-// (CanOpenDriver::open: raw socket, its id filters, kernel timestamps) in CST, the virtual robot's
+// (CanOpenDriver::open: raw socket, its id filters, kernel timestamps) in CSP, the virtual robot's
 // CANopen drives on a second raw socket, and can-utils' candump as an independent peer recording
 // the bus. The recorded frames are checked by decoding candump's text here, with CiA 301 / 402
 // written from the specification, not with our codecs: the bring-up (NMT reset communication,
@@ -22,6 +22,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <numbers>
@@ -135,7 +136,12 @@ std::int32_t le32(const std::vector<std::uint8_t>& d, std::size_t i) {
 
 }  // namespace
 
-TEST(CanOpenVcan, CstWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
+// CSP, the PD in the drives: in the VM the loop's first cycles came 30–40 ms apart even at
+// SCHED_FIFO 80 with mlockall (the read overran its deadline); in CST the PD runs on the host and
+// a 40 ms hold of its torque is beyond the sampled PD's stability limit 2J/K_D = 13 ms, so the
+// motor ran away (−64 … −130 rad/s) and the observer stopped the robot on an implausible rate,
+// rightly. CST is walked over a socket pair (vrobot_canopen_test); this test is about the bus.
+TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
   if (!drivers::can_sockets_available())
     CANOPEN_SKIP_OR_FAIL("this kernel has no PF_CAN (socket(AF_CAN) fails)");
   if (::if_nametoindex(kIf) == 0)
@@ -150,10 +156,11 @@ TEST(CanOpenVcan, CstWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
   char yaml[1024];
   std::snprintf(yaml, sizeof yaml,
                 "name: vcan-canopen\nrate_hz: %g\nduration: %g\nrobot: {N: %d}\n"
-                "driver: {type: socketcan, ifname: vcan0, protocol: canopen, drive_mode: cst, heartbeat: 0.1, "
+                "driver: {type: socketcan, ifname: vcan0, protocol: canopen, drive_mode: csp, heartbeat: 0.1, "
                 "heartbeat_timeout: 2.0}\n"
-                "controller: {k_c: 0, pd_placement: host, K_p: 20, K_D: 0.5}\n"
-                "realtime: {clock: realtime, cpu: 0, stale_timeout: 10, read_budget: 0.9}\n"
+                "controller: {k_c: 0, pd_placement: module, K_p: 30, K_D: 15}\n"
+                "realtime: {clock: realtime, cpu: 0, priority: 80, lock_memory: true, stale_timeout: 10, "
+                "read_budget: 0.9}\n"
                 "observer: {enabled: true}\ntelemetry: {enabled: false}\n",
                 rate, duration, scene.robot.N);
   config::DaemonConfig cfg = config::parse_daemon_config(yaml, "vcan-canopen.yaml", PEDALWAVE_CONFIG_DIR "/runtime");
@@ -167,12 +174,24 @@ TEST(CanOpenVcan, CstWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // candump bound to vcan0
   test::WalkSetup s{.transport = test::Transport::kCanClassic, .rate_hz = rate, .duration = duration,
                     .command_timeout = 1.0, .plant_max_step = 2.5e-4};
+  // SCHED_FIFO for the loop (80) and the drives' thread (70), as the other deployment walks in the
+  // VM: at normal priority the VM's first cycles overran to 27 ms, beyond the host PD's sampled
+  // stability limit 2J/K_D = 13 ms in CST (the PD on the host); see above.
+  s.robot_priority = 70;
   vrobot::VirtualRobotOptions vo = test::robot_options(s, scene, {});
   vo.bus = vrobot::Bus::kCanOpen;
   vrobot::VirtualRobot robot(scene, vrobot::open_canopen_module_socket(kIf), vo);
   robot.start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the drives' power-on boot-ups
   std::unique_ptr<drivers::CanOpenDriver> drv = drivers::CanOpenDriver::open(cfg.driver.can);
-  const test::WalkResult r = test::run_walk(cfg, robot, *drv);
+  // PEDALWAVE_VM_PLOTS=DIR: the daemon's --plots (cycles.csv) in DIR/canopen, on the folder the VM
+  // shares with the host (debugging this test).
+  std::string plots;
+  if (const char* dir = std::getenv("PEDALWAVE_VM_PLOTS"); dir != nullptr && *dir != '\0') {
+    plots = std::string(dir) + "/canopen";
+    std::filesystem::create_directories(plots);
+  }
+  const test::WalkResult r = test::run_walk(cfg, robot, *drv, false, plots);
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // candump writes the tail
   dump.stop();
   std::printf("%s[canopen-vcan] %llu cycles, speed %.3f cm/s, missing %llu, late %llu, driver fault '%s'\n",
@@ -181,6 +200,10 @@ TEST(CanOpenVcan, CstWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
               drv->fault_text());
   EXPECT_EQ(r.daemon.run.reason, runtime::ExitReason::kCycleLimit);
   EXPECT_EQ(r.daemon.run.fault, runtime::FaultClass::kNone) << runtime::to_string(r.daemon.run.fault);
+  // Not asserted, and open (issue 14): in the VM this walk is not clean. One run (05:08 UTC):
+  // 92 overruns in 600 cycles, 845 samples late at the master though candump saw every TPDO of
+  // every SYNC, and a false actuator_torque degrade (hold) on joint 3 at 4.1 s. The exit line
+  // above prints the events of each run.
   EXPECT_EQ(drv->fault_joint(), -1) << drv->fault_text();
   EXPECT_TRUE(r.all_modules_off);
 
@@ -211,12 +234,15 @@ TEST(CanOpenVcan, CstWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
     }
   }
   for (unsigned n = 1; n <= static_cast<unsigned>(J); ++n) {
-    EXPECT_EQ(boot[n], 1) << "boot-up of node " << n;
+    // One boot-up answers the reset; a drive's power-on boot-up can land after the reset too when
+    // the VM schedules the drives' thread late, so at most two.
+    EXPECT_GE(boot[n], 1) << "boot-up of node " << n;
+    EXPECT_LE(boot[n], 2) << "boot-up of node " << n;
     EXPECT_GT(sdo_req[n], 20) << "node " << n << " configured by SDO";
     EXPECT_EQ(sdo_resp[n], sdo_req[n]) << "every SDO request of node " << n << " answered (no abort)";
   }
   // The cycle: SYNCs without data; between two SYNCs each node's TPDOs (8 bytes) and RPDO 1
-  // (4 bytes: controlword, target torque).
+  // (8 bytes: controlword, target position, torque offset).
   int syncs = 0, complete = 0, enabled_rpdos = 0, operational_hb = 0;
   std::map<unsigned, std::pair<double, double>> range;  // node → min, max position [rad]
   std::vector<int> t1(J + 1), t2(J + 1), rp(J + 1);
@@ -246,7 +272,7 @@ TEST(CanOpenVcan, CstWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
       ASSERT_EQ(f.data.size(), 8u);
       ++t2[f.id - 0x280];
     } else if (f.id > 0x200 && f.id <= 0x200 + static_cast<unsigned>(J)) {
-      ASSERT_EQ(f.data.size(), 4u);
+      ASSERT_EQ(f.data.size(), 8u);  // CSP RPDO 1: controlword, target position, torque offset
       if (le16(f.data, 0) == 0x000F) ++enabled_rpdos;
       last_rpdo = &f;
     } else if (f.id > 0x700 && f.id <= 0x77F && f.data == std::vector<std::uint8_t>{0x05}) {

@@ -341,7 +341,13 @@ void Runtime::read_feedback(std::int64_t deadline, Stamps& at) {
     const auto js = static_cast<std::size_t>(j);
     const bool fresh = io == drivers::IoStatus::kOk ||
                        (io == drivers::IoStatus::kPartial && (fb_.status[js] & kNotFresh) == 0);
-    if (fresh) last_fresh_ns_[js] = at.wake;
+    if (fresh) {
+      last_fresh_ns_[js] = at.wake;
+      if (!heard_[js]) {
+        heard_[js] = true;
+        ++heard_count_;
+      }
+    }
   }
   sample_.t_read_ns = static_cast<std::int32_t>(at.read - at.wake);
   metrics_.read.record(at.read - at.wake);
@@ -399,7 +405,9 @@ Verdict Runtime::check_feedback(std::int64_t wake) const noexcept {
 void Runtime::apply_operator_commands() {
   for (int i = 0; i < n_pending_; ++i) apply_operator_command(pending_[static_cast<std::size_t>(i)]);
   n_pending_ = 0;
-  if (auto_start_pending_ && modes_.mode() == Mode::kReady) {
+  // auto_start: RUNNING once READY and every joint has reported at least once (a controller that
+  // runs the PD on the host must not act on a joint it has no measurement of).
+  if (auto_start_pending_ && modes_.mode() == Mode::kReady && heard_count_ == joints_) {
     auto_start_pending_ = false;
     OperatorCommand go;
     go.kind = OperatorCommandKind::kStartWalking;
@@ -605,7 +613,10 @@ void Runtime::apply_operator_command(const OperatorCommand& c) {
   info.value = static_cast<double>(c.id);
   switch (c.kind) {
     case OperatorCommandKind::kStartWalking:
-      if (m == Mode::kReady) {
+      if (m == Mode::kReady && heard_count_ < joints_) {
+        info.severity = Severity::kWarning;
+        push_event(m, m, &info, "start walking rejected: a joint has not reported any feedback yet");
+      } else if (m == Mode::kReady) {
         running_since_ns_ = cur_deadline_;
         held_ = false;
         controller_.start(fb_);

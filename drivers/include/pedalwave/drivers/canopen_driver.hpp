@@ -62,6 +62,12 @@ class CanOpenDriver final : public Driver {
   IoStatus write(const Command& cmd) override;
   void safe_stop() override;
   const DriverCounters& counters() const override { return counters_; }
+  // The drives' units after bring-up (608Fh, 6001h, 6076h: the coarsest joint's), and the sample
+  // time's uncertainty: a PDO carries no time stamp, so a sample's time is the host's SYNC time —
+  // taken before write(), a lower bound — and a loaded host's send path delays the SYNC by up to
+  // about a millisecond (measured in the vcan VM: consistency errors of 6e-4 … 8e-4 rad at
+  // 1 … 2 rad/s), as a host-stamped serial request does (the X-series driver declares the same).
+  FeedbackSpec feedback_spec() const override;
 
   // The first drive fault / lost node, named; "" while none.
   const char* fault_text() const noexcept { return fault_text_.data(); }

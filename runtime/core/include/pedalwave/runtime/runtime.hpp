@@ -71,7 +71,8 @@ struct RuntimeConfig {
   double read_budget = 0.5;               // driver read deadline = wake + budget·period [-], (0, 1]
   double stale_timeout = 0.02;            // feedback missing longer than this → kStaleData [s],
                                           // ≥ one period
-  bool auto_start = false;                // READY → RUNNING in the first cycle (no operator start)
+  bool auto_start = false;                // READY → RUNNING in the first READY cycle in which every
+                                          // joint has reported (no operator start)
   std::uint64_t max_cycles = 0;           // stop (safe stop) after this many cycles; 0 = no limit
   std::uint32_t overrun_fault_after = 0;  // this many consecutive overruns → kOverrun fault with
                                           // severity kStop; 0 = overruns are only counted
@@ -227,7 +228,9 @@ class Runtime {
   std::uint32_t consecutive_overruns_ = 0;
   bool overrun_fault_pending_ = false;
   std::int32_t last_skipped_ = 0;
-  bool auto_start_pending_ = false;    // cfg.auto_start, until the first READY cycle
+  bool auto_start_pending_ = false;    // cfg.auto_start, until READY with every joint heard
+  std::array<bool, drivers::kMaxJoints> heard_{};  // a fresh reading seen from this joint
+  int heard_count_ = 0;
 
   // CALIBRATING: running sums per joint, and the zeros found (0 until then).
   struct CalibrationSums {

@@ -80,7 +80,7 @@ void read_controller(const Reader& r, DaemonConfig& c) {
     const model::GaitParams g = read_gait(r["gait"], 0.0);
     p.gait.A_p = g.A_p;
     p.gait.omega = g.omega;
-    p.admittance.Pi_n = {g.eta};
+    p.admittance.eta_n = {g.eta};
   }
 }
 
@@ -558,7 +558,7 @@ DaemonConfig parse_daemon_config(const std::string& text, const std::string& nam
           "takes amplitudes >= 0 (or give controller.gait in " + (c.source.empty() ? c.name : c.source) + ")");
     p.gait.A_p = c.driver.scene.gait.A_p;
     p.gait.omega = c.driver.scene.gait.omega;
-    p.admittance.Pi_n = {c.driver.scene.gait.eta};
+    p.admittance.eta_n = {c.driver.scene.gait.eta};
   }
   if (r.has("controller")) read_controller(r["controller"], c);
   // Stock X-series servos run no module law: the host evaluates the PD and sends a current, so

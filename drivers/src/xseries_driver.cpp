@@ -472,8 +472,8 @@ bool XSeriesDriver::send(const Command* cmd, std::int64_t until_ns) noexcept {
       // The module law, on the host, from the sample handed out last (PROTOCOL.md §3.6).
       double u = cmd->tau[ju];
       if (cmd->kp[ju] != 0.0 || cmd->kd[ju] != 0.0) {
-        u += cmd->kp[ju] * (cmd->beta_ref[ju] - beta_[ju]) +
-             cmd->kd[ju] * (cmd->beta_dot_ref[ju] - beta_dot_[ju]);
+        u = module_law(cmd->tau[ju], cmd->kp[ju], cmd->beta_ref[ju], cmd->kd[ju], cmd->beta_dot_ref[ju],
+                       beta_[ju], beta_dot_[ju]);
         if (!have_sample_[ju]) u = std::nan("");  // no sample yet: no law to evaluate
       }
       // The controller's host-side PD (pd_placement: host) is in τ: on a sample older than

@@ -1,5 +1,7 @@
 #include "pedalwave/model/plant.hpp"
 
+#include "pedalwave/interface/sea.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -564,8 +566,8 @@ void Plant::motor_torques(const VectorXd& q, const VectorXd& v, Eigen::Ref<Vecto
     const double beta = q(first + j), beta_dot = v(first + j);
     double uj = 0.0;
     if (!input_.torque_off)
-      uj = input_.tau(j) + input_.kp(j) * (input_.beta_ref(j) - beta) +
-           input_.kd(j) * (input_.beta_dot_ref(j) - beta_dot);
+      uj = module_law(input_.tau(j), input_.kp(j), input_.beta_ref(j), input_.kd(j), input_.beta_dot_ref(j),
+                      beta, beta_dot);
     if (lim > 0) uj = std::clamp(uj, -lim, lim);
     // Injected faults: output gain, extra motor friction (healthy: × 1, + 0, bit-identical).
     u(j) = faults_.torque_gain(j) * uj - (b + faults_.motor_friction(j)) * beta_dot;

@@ -444,7 +444,7 @@ TEST(DdsEndToEnd, RuntimePublishesEveryTopicConsistentlyAndLateJoinersCatchUp) {
   std::size_t running = 0;
   for (const auto& m : all.controller) {
     ASSERT_EQ(m.alpha_d.size(), static_cast<std::size_t>(J));
-    ASSERT_EQ(m.pi.size(), static_cast<std::size_t>(J));
+    ASSERT_EQ(m.eta.size(), static_cast<std::size_t>(J));
     ASSERT_EQ(m.u.size(), static_cast<std::size_t>(J));
     for (double x : m.u) ASSERT_TRUE(std::isfinite(x));
     if (m.mode == static_cast<std::uint8_t>(runtime::Mode::kRunning)) {

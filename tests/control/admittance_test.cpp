@@ -108,7 +108,7 @@ TEST(Admittance, StepResponseMatchesContinuousSolutionAt1kHz) {
   const double xs = F / K;
   for (int k = 0; k <= 12000; ++k) {
     const double t = 1e-3 * k;
-    const double x = adm.Pi(s, 2) - adm.Pi_n(2);
+    const double x = adm.eta(s, 2) - adm.eta_n(2);
     worst = std::max(worst, std::abs(x - continuous_step(M, D, K, F, t)));
     peak = std::max(peak, x);
     err.push_back(xs - x);
@@ -116,7 +116,7 @@ TEST(Admittance, StepResponseMatchesContinuousSolutionAt1kHz) {
   }
   EXPECT_LT(worst, 1e-12 * xs);  // ZOH of a constant input is exact
   // Steady state Π − Π_n = k_c Q_e / K_d (after 12 s the slow mode is down to e^{−27}).
-  EXPECT_NEAR(adm.Pi(s, 0) - adm.Pi_n(0), k_c * Q / K, 1e-11);
+  EXPECT_NEAR(adm.eta(s, 0) - adm.eta_n(0), k_c * Q / K, 1e-11);
   // ζ = D/(2√(KM)) = 1.195 > 1: no overshoot.
   EXPECT_LE(peak, xs * (1.0 + 1e-12));
   // Tail decays with the slow pole −ζω_n + ω_n√(ζ²−1) = −2.2614 s⁻¹ (between 4 s and 5 s the
@@ -140,7 +140,7 @@ TEST(Admittance, UnderdampedOvershootAndPeakTimeMatchZetaAndOmegaN) {
   const double xs = k_c * Q / 17.5;
   for (int k = 0; k <= 8000; ++k) {
     const double t = 1e-3 * k;
-    const double x = adm.Pi(s, 0) - adm.Pi_n(0);
+    const double x = adm.eta(s, 0) - adm.eta_n(0);
     worst = std::max(worst, std::abs(x - continuous_step(1.0, D, 17.5, k_c * Q, t)));
     if (x > peak) { peak = x; t_peak = t; }
     adm.step(s, Q_e, 1e-3, flags);
@@ -157,7 +157,7 @@ TEST(Admittance, UnderdampedOvershootAndPeakTimeMatchZetaAndOmegaN) {
 TEST(Admittance, ZeroGainKeepsNominalBitForBitEvenWithNonFiniteTorque) {
   pc::AdmittanceParams p;
   p.k_c = 0.0;
-  p.Pi_n = {-1.0, -1.1, -1.2, 0.3};
+  p.eta_n = {-1.0, -1.1, -1.2, 0.3};
   const pc::Admittance adm(p, 4, 1e-3);
   pc::AdmittanceState s;
   adm.reset(s);
@@ -166,9 +166,9 @@ TEST(Admittance, ZeroGainKeepsNominalBitForBitEvenWithNonFiniteTorque) {
   std::array<std::uint8_t, 4> flags{};
   for (int k = 0; k < 2000; ++k) adm.step(s, Q_e, k % 2 ? 1e-3 : 7e-4, flags);
   for (int j = 0; j < 4; ++j) {
-    EXPECT_EQ(adm.Pi(s, j), p.Pi_n[static_cast<std::size_t>(j)]);
-    EXPECT_EQ(adm.Pi_dot(s, j), 0.0);
-    EXPECT_EQ(adm.Pi_ddot(s, j, Q_e[static_cast<std::size_t>(j)]), 0.0);
+    EXPECT_EQ(adm.eta(s, j), p.eta_n[static_cast<std::size_t>(j)]);
+    EXPECT_EQ(adm.eta_dot(s, j), 0.0);
+    EXPECT_EQ(adm.eta_ddot(s, j, Q_e[static_cast<std::size_t>(j)]), 0.0);
     EXPECT_EQ(flags[static_cast<std::size_t>(j)], 0);
   }
 }
@@ -180,12 +180,12 @@ TEST(Admittance, NonFiniteTorqueHoldsOnlyThatJoint) {
   std::array<double, 3> Q_e{1.0, std::numeric_limits<double>::quiet_NaN(), 1.0};
   std::array<std::uint8_t, 3> flags{};
   for (int k = 0; k < 100; ++k) adm.step(s, Q_e, 1e-3, flags);
-  EXPECT_GT(adm.Pi(s, 0), adm.Pi_n(0));
-  EXPECT_EQ(adm.Pi(s, 1), adm.Pi_n(1));
-  EXPECT_TRUE(std::isfinite(adm.Pi(s, 1)));
+  EXPECT_GT(adm.eta(s, 0), adm.eta_n(0));
+  EXPECT_EQ(adm.eta(s, 1), adm.eta_n(1));
+  EXPECT_TRUE(std::isfinite(adm.eta(s, 1)));
   EXPECT_EQ(flags[1], pc::kJointBadTorque);
   EXPECT_EQ(flags[0], 0);
-  EXPECT_EQ(adm.Pi(s, 0), adm.Pi(s, 2));
+  EXPECT_EQ(adm.eta(s, 0), adm.eta(s, 2));
 }
 
 TEST(Admittance, BoundsClampPiAndFlag) {
@@ -198,9 +198,9 @@ TEST(Admittance, BoundsClampPiAndFlag) {
   std::array<double, 2> Q_e{1.0, -1.0};
   std::array<std::uint8_t, 2> flags{};
   for (int k = 0; k < 3000; ++k) adm.step(s, Q_e, 1e-3, flags);
-  EXPECT_NEAR(adm.Pi(s, 0), -1.0, 1e-15);
-  EXPECT_EQ(adm.Pi_dot(s, 0), 0.0);
-  EXPECT_NEAR(adm.Pi(s, 1), -1.5, 1e-15);
+  EXPECT_NEAR(adm.eta(s, 0), -1.0, 1e-15);
+  EXPECT_EQ(adm.eta_dot(s, 0), 0.0);
+  EXPECT_NEAR(adm.eta(s, 1), -1.5, 1e-15);
   EXPECT_TRUE(flags[0] & pc::kJointPiBound);
   EXPECT_TRUE(flags[1] & pc::kJointPiBound);
 }
@@ -218,7 +218,7 @@ TEST(Admittance, VaryingDtStaysExact) {
     adm.step(s, Q_e, dt, flags);
     t += dt;
   }
-  EXPECT_NEAR(adm.Pi(s, 0) - adm.Pi_n(0), continuous_step(1.0, 10.0, 17.5, 1.5, t), 1e-12);
+  EXPECT_NEAR(adm.eta(s, 0) - adm.eta_n(0), continuous_step(1.0, 10.0, 17.5, 1.5, t), 1e-12);
 }
 
 TEST(Admittance, ValidationMessagesNameParameterValueAndExpectation) {
@@ -236,14 +236,14 @@ TEST(Admittance, ValidationMessagesNameParameterValueAndExpectation) {
   EXPECT_NE(m.find("admittance.D_d = -1"), std::string::npos) << m;
   EXPECT_NE(m.find("expected a finite value > 0"), std::string::npos) << m;
   p = {};
-  p.Pi_n = {1.0, 2.0, 3.0};
+  p.eta_n = {1.0, 2.0, 3.0};
   m = message(p, 5, 1e-3);
-  EXPECT_NE(m.find("admittance.Pi_n.size() = 3"), std::string::npos) << m;
+  EXPECT_NE(m.find("admittance.eta_n.size() = 3"), std::string::npos) << m;
   EXPECT_NE(m.find("1 (same value for every joint) or 5"), std::string::npos) << m;
   p = {};
   p.eta_max = -2.0;  // Π_n = −1.2566 outside
   m = message(p, 5, 1e-3);
-  EXPECT_NE(m.find("admittance.Pi_n[0]"), std::string::npos) << m;
+  EXPECT_NE(m.find("admittance.eta_n[0]"), std::string::npos) << m;
   p = {};
   p.eta_min = 0.0;
   p.eta_max = 0.0;

@@ -114,8 +114,8 @@ TEST(GaitController, OpenLoopGaitIsExactAndPiStaysNominalBitForBit) {
     c.update(t, 1e-3, m.view(5), s, out);
     for (int j = 0; j < 5; ++j) {
       const auto i = static_cast<std::size_t>(j);
-      ASSERT_EQ(out.Pi[i], eta);
-      ASSERT_EQ(out.Pi_dot[i], 0.0);
+      ASSERT_EQ(out.eta[i], eta);
+      ASSERT_EQ(out.eta_dot[i], 0.0);
       ASSERT_EQ(out.alpha_d[i], (pi / 4.0) * std::sin(pi * t + eta * static_cast<double>(j)));
       ASSERT_EQ(out.alpha_d_dot[i], (pi / 4.0) * std::cos(pi * t + eta * static_cast<double>(j)) * pi);
     }
@@ -140,8 +140,8 @@ TEST(GaitController, HandComputedUpdate) {
   EXPECT_NEAR(out.Q_e[0], -0.06, 1e-15);
   EXPECT_NEAR(out.Q_e[1], 0.03, 1e-15);
   // At the first update Π = Π_n, Π̇ = 0, Π̈ = k_c Q_e / M_d.
-  EXPECT_EQ(out.Pi[1], eta);
-  EXPECT_NEAR(out.Pi_ddot[1], 2.0 * 0.03, 1e-15);
+  EXPECT_EQ(out.eta[1], eta);
+  EXPECT_NEAR(out.eta_ddot[1], 2.0 * 0.03, 1e-15);
   // Joint 1: α^d = (π/4) sin(0.1π), α̇^d = (π/4) cos(0.1π) π
   const double ad0 = (pi / 4.0) * std::sin(0.1 * pi), add0 = (pi / 4.0) * std::cos(0.1 * pi) * pi;
   EXPECT_NEAR(out.alpha_d[0], 0.24270, 1e-5);
@@ -153,9 +153,9 @@ TEST(GaitController, HandComputedUpdate) {
   EXPECT_EQ(out.status, pc::kControlOk);
   // After the step, Π moved in the direction of k_c Q_e: joint 2 up, joint 1 down.
   c.update(t + 1e-3, 1e-3, m.view(2), s, out);
-  EXPECT_GT(out.Pi[1], eta);
-  EXPECT_LT(out.Pi[0], eta);
-  EXPECT_NEAR(out.Pi[1] - eta, 2.0 * 0.03 * 0.5e-6, 1e-9);  // ≈ f T²/2
+  EXPECT_GT(out.eta[1], eta);
+  EXPECT_LT(out.eta[0], eta);
+  EXPECT_NEAR(out.eta[1] - eta, 2.0 * 0.03 * 0.5e-6, 1e-9);  // ≈ f T²/2
 }
 
 TEST(GaitController, StepResponseThroughControllerReachesKcQeOverKd) {
@@ -169,7 +169,7 @@ TEST(GaitController, StepResponseThroughControllerReachesKcQeOverKd) {
   m.deflection.fill(-0.05);  // Q_e = +0.15 N·m
   for (int k = 0; k < 8000; ++k) c.update(1e-3 * k, 1e-3, m.view(5), s, out);
   for (int j = 0; j < 5; ++j) {
-    EXPECT_NEAR(out.Pi[static_cast<std::size_t>(j)] - c.admittance().Pi_n(j), 10.1 * 0.15 / 17.5, 1e-7);
+    EXPECT_NEAR(out.eta[static_cast<std::size_t>(j)] - c.admittance().eta_n(j), 10.1 * 0.15 / 17.5, 1e-7);
   }
 }
 
@@ -216,7 +216,7 @@ TEST(GaitController, FreezeHoldsAlphaDAndResumeContinuesThePhase) {
       const auto u = static_cast<std::size_t>(j);
       ASSERT_EQ(out.alpha_d[u], before.alpha_d[u]);  // the last α^d, held exactly
       ASSERT_EQ(out.alpha_d_dot[u], 0.0);
-      ASSERT_EQ(out.Pi[u], before.Pi[u]);  // the admittance is held too
+      ASSERT_EQ(out.eta[u], before.eta[u]);  // the admittance is held too
     }
     ASSERT_EQ(out.tau, before.tau);
   }
@@ -268,14 +268,14 @@ TEST(GaitController, NonFiniteInputsAreContained) {
   for (int j = 0; j < 5; ++j) {
     const auto i = static_cast<std::size_t>(j);
     EXPECT_TRUE(std::isfinite(out.u[i])) << j;
-    EXPECT_TRUE(std::isfinite(out.Pi[i])) << j;
+    EXPECT_TRUE(std::isfinite(out.eta[i])) << j;
     EXPECT_TRUE(std::isfinite(out.alpha_d[i])) << j;
   }
-  EXPECT_EQ(out.Pi[3], c.admittance().Pi_n(3));  // held
-  EXPECT_NE(out.Pi[0], c.admittance().Pi_n(0));  // others adapt
+  EXPECT_EQ(out.eta[3], c.admittance().eta_n(3));  // held
+  EXPECT_NE(out.eta[0], c.admittance().eta_n(0));  // others adapt
   // Bad dt: flagged, admittance held.
   c.update(0.02, std::nan(""), m.view(5), s, out);
-  const double pi0 = out.Pi[0];
+  const double pi0 = out.eta[0];
   c.update(0.021, -1.0, m.view(5), s, out);
   EXPECT_TRUE(out.status & pc::kControlBadDt);
   c.update(std::numeric_limits<double>::quiet_NaN(), 1e-3, m.view(5), s, out);
@@ -283,7 +283,7 @@ TEST(GaitController, NonFiniteInputsAreContained) {
   EXPECT_TRUE(std::isfinite(out.alpha_d[2]));
   EXPECT_TRUE(std::isfinite(out.u[2]));
   c.update(0.022, 1e-3, m.view(5), s, out);
-  EXPECT_EQ(out.Pi[0], pi0);
+  EXPECT_EQ(out.eta[0], pi0);
   EXPECT_NEAR(out.tau, 0.022, 1e-12);  // the phase is still the clock's
   // Spans too short: no torque, flagged, nothing propagated.
   c.update(0.023, 1e-3, m.view(3), s, out);

@@ -96,7 +96,7 @@ inline void expect_matches(const telemetry::ControllerStateMsg& m, const runtime
   EXPECT_EQ(m.t, s.t);
   EXPECT_EQ(m.mode, static_cast<std::uint8_t>(s.mode));
   expect_joint_vector(m.alpha_d, s.alpha_d, s.joints, "alpha_d");
-  expect_joint_vector(m.pi, s.pi, s.joints, "pi");
+  expect_joint_vector(m.eta, s.eta, s.joints, "eta");
   expect_joint_vector(m.u, s.u, s.joints, "u");
 }
 

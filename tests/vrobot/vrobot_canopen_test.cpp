@@ -39,7 +39,7 @@ config::DaemonConfig canopen_config(const std::string& driver, const std::string
   config::DaemonConfig c = config::parse_daemon_config(yaml, "vrobot-canopen.yaml", PEDALWAVE_CONFIG_DIR "/runtime");
   c.controller.gait.A_p = scene().gait.A_p;
   c.controller.gait.omega = scene().gait.omega;
-  c.controller.admittance.Pi_n = {scene().gait.eta};
+  c.controller.admittance.eta_n = {scene().gait.eta};
   return c;
 }
 

@@ -166,7 +166,7 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
   config::DaemonConfig cfg = config::parse_daemon_config(yaml, "vcan-canopen.yaml", PEDALWAVE_CONFIG_DIR "/runtime");
   cfg.controller.gait.A_p = scene.gait.A_p;
   cfg.controller.gait.omega = scene.gait.omega;
-  cfg.controller.admittance.Pi_n = {scene.gait.eta};
+  cfg.controller.admittance.eta_n = {scene.gait.eta};
 
   const std::string file = std::string(::testing::TempDir()) + "canopen_candump.log";
   Candump dump(exe, file);

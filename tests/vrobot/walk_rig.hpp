@@ -138,7 +138,7 @@ inline config::DaemonConfig daemon_config(const WalkSetup& s, const model::Scene
   // The controller walks with the scene's gait, as the sim configuration does.
   c.controller.gait.A_p = scene.gait.A_p;
   c.controller.gait.omega = scene.gait.omega;
-  c.controller.admittance.Pi_n = {scene.gait.eta};
+  c.controller.admittance.eta_n = {scene.gait.eta};
   if (c.robot.stiffness(0) != scene.robot.stiffness(0) || c.robot.n != scene.robot.n ||
       c.robot.I_r != scene.robot.I_r)
     throw std::logic_error("daemon robot differs from the scene's robot");

@@ -478,12 +478,7 @@ int main(int argc, char** argv) {
       std::getline(la, l);
       std::printf("%s\n", l.c_str());
     }
-    std::printf("driver: sim (lockstep plant), gait controller (module-side PD), observer %s (verdicts published, not acted on); demo decimation 1/%d\n",
-#if PEDALWAVE_HAS_OBSERVER
-                "on",
-#else
-                "not built",
-#endif
+    std::printf("driver: sim (lockstep plant), gait controller (module-side PD), observer on (verdicts published, not acted on); demo decimation 1/%d\n",
                 demo_decimation);
 
     bool any_secure = false;

@@ -102,7 +102,7 @@ RunResult run(const RunSpec& spec) {
       // η of the head joint as the controller will use it from this period on (before the first
       // update: the nominal η).
       tr.eta_head.push_back(k == 0 ? spec.scene.gait.eta
-                                   : loop.control().Pi[static_cast<std::size_t>(head_joint)]);
+                                   : loop.control().eta[static_cast<std::size_t>(head_joint)]);
       std::vector<double> bx(static_cast<std::size_t>(P)), bz(static_cast<std::size_t>(P));
       for (int p = 0; p < P; ++p) {
         const model::Vec2 pt = model::point_position(m, dd, q, p);

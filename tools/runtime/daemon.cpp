@@ -40,9 +40,7 @@
 #include "pedalwave/telemetry/dds_telemetry.hpp"
 #include "pedalwave/telemetry/mcap_recorder.hpp"
 #endif
-#if PEDALWAVE_HAS_OBSERVER
 #include "pedalwave/observer/runtime_observer.hpp"
-#endif
 
 namespace pedalwave::app {
 
@@ -270,16 +268,11 @@ void write_runtime_plots(const std::string& dir, const SampleRecorder& rec,
 
 // The residual threshold the daemon's observer uses (NaN: no observer).
 double observer_threshold(const config::DaemonConfig& cfg) {
-#if PEDALWAVE_HAS_OBSERVER
-  if (cfg.observer) return observer::ObserverParams{}.r_threshold;
-#endif
-  (void)cfg;
-  return NAN;
+  return cfg.observer ? observer::ObserverParams{}.r_threshold : NAN;
 }
 
 std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg,
                                                  const drivers::Driver* driver) {
-#if PEDALWAVE_HAS_OBSERVER
   if (!cfg.observer) return nullptr;
   observer::ObserverParams op;
   // The driver's declared sensor resolution and host-law stale limit: the observer's thresholds
@@ -298,11 +291,6 @@ std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg
     if (sc.torque_limit_on) op.u_max = sc.torque_limit.u_max;
   }
   return std::make_unique<observer::RuntimeObserver>(op);
-#else
-  (void)cfg;
-  (void)driver;
-  return nullptr;
-#endif
 }
 
 int exit_code(const runtime::RunResult& r) noexcept {

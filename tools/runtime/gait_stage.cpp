@@ -14,7 +14,7 @@ void GaitStage::run(const runtime::CycleIo& io) {
   for (int j = 0; j < J; ++j) {
     const auto k = static_cast<std::size_t>(j);
     io.sample.alpha_d[k] = out_.alpha_d[k];
-    io.sample.pi[k] = out_.Pi[k];
+    io.sample.eta[k] = out_.eta[k];
     io.sample.u[k] = out_.u[k];
   }
 }

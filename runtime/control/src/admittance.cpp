@@ -74,12 +74,12 @@ Admittance::Admittance(const AdmittanceParams& params, int joints, double period
     detail::fail("admittance.eta_max", detail::format_value(params.eta_max),
                  "> admittance.eta_min = " + detail::format_value(params.eta_min) + " [rad]");
   }
-  Pi_n_ = detail::per_joint("admittance.Pi_n", params.Pi_n, joints);
+  Pi_n_ = detail::per_joint("admittance.eta_n", params.eta_n, joints);
   for (int j = 0; j < joints; ++j) {
     const double eta = Pi_n_[static_cast<std::size_t>(j)];
-    detail::require_finite(detail::indexed("admittance.Pi_n", j), eta, "[rad]");
+    detail::require_finite(detail::indexed("admittance.eta_n", j), eta, "[rad]");
     if (eta < params.eta_min || eta > params.eta_max) {
-      detail::fail(detail::indexed("admittance.Pi_n", j), detail::format_value(eta),
+      detail::fail(detail::indexed("admittance.eta_n", j), detail::format_value(eta),
                    "within [eta_min, eta_max] = [" + detail::format_value(params.eta_min) + ", " +
                        detail::format_value(params.eta_max) + "] [rad]");
     }
@@ -94,7 +94,7 @@ void Admittance::reset(AdmittanceState& s) const noexcept {
   s.zoh = nominal_;
 }
 
-double Admittance::Pi_ddot(const AdmittanceState& s, int i, double Q_e) const noexcept {
+double Admittance::eta_ddot(const AdmittanceState& s, int i, double Q_e) const noexcept {
   const auto u = static_cast<std::size_t>(i);
   const double f = params_.k_c == 0.0 ? 0.0 : params_.k_c * Q_e;  // k_c Q_e [N·m]
   return (f - params_.D_d * s.v[u] - params_.K_d * s.x[u]) / params_.M_d;

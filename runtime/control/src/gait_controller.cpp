@@ -125,8 +125,8 @@ void GaitController::reset(GaitControllerState& state, double t0) const noexcept
   // What a freeze before the first update holds: the gait at τ = 0 with Π = Π_n.
   for (int j = 0; j < joints_; ++j) {
     const auto i = static_cast<std::size_t>(j);
-    state.Pi_held[i] = admittance_.Pi(state.admittance, j);
-    state.alpha_d_held[i] = gait_joint(params_.gait, 0.0, j + 1, state.Pi_held[i], 0.0, 0.0).alpha_d;
+    state.eta_held[i] = admittance_.eta(state.admittance, j);
+    state.alpha_d_held[i] = gait_joint(params_.gait, 0.0, j + 1, state.eta_held[i], 0.0, 0.0).alpha_d;
   }
 }
 
@@ -168,26 +168,26 @@ std::uint32_t GaitController::update(double t, double dt, const Measurement& m,
 
     if (frozen) {
       // 2–3 (frozen). Hold the last running update's Π and α^d exactly, with zero rates.
-      out.Pi[i] = state.Pi_held[i];
-      out.Pi_dot[i] = 0.0;
-      out.Pi_ddot[i] = 0.0;
+      out.eta[i] = state.eta_held[i];
+      out.eta_dot[i] = 0.0;
+      out.eta_ddot[i] = 0.0;
       out.alpha_d[i] = state.alpha_d_held[i];
       out.alpha_d_dot[i] = 0.0;
       out.alpha_d_ddot[i] = 0.0;
     } else {
       // 2. Spatial frequency and its rates from the admittance state.
-      out.Pi[i] = admittance_.Pi(state.admittance, j);
-      out.Pi_dot[i] = admittance_.Pi_dot(state.admittance, j);
-      out.Pi_ddot[i] = admittance_.Pi_ddot(state.admittance, j, out.Q_e[i]);
-      if (!std::isfinite(out.Pi_ddot[i])) out.Pi_ddot[i] = 0.0;  // non-finite Q_e: η held below
+      out.eta[i] = admittance_.eta(state.admittance, j);
+      out.eta_dot[i] = admittance_.eta_dot(state.admittance, j);
+      out.eta_ddot[i] = admittance_.eta_ddot(state.admittance, j, out.Q_e[i]);
+      if (!std::isfinite(out.eta_ddot[i])) out.eta_ddot[i] = 0.0;  // non-finite Q_e: η held below
 
       // 3. Gait reference (P-34), 1-based joint number j+1.
       const GaitPoint g =
-          gait_joint(params_.gait, tau, j + 1, out.Pi[i], out.Pi_dot[i], out.Pi_ddot[i]);
+          gait_joint(params_.gait, tau, j + 1, out.eta[i], out.eta_dot[i], out.eta_ddot[i]);
       out.alpha_d[i] = g.alpha_d;
       out.alpha_d_dot[i] = g.alpha_d_dot;
       out.alpha_d_ddot[i] = g.alpha_d_ddot;
-      state.Pi_held[i] = out.Pi[i];
+      state.eta_held[i] = out.eta[i];
       state.alpha_d_held[i] = out.alpha_d[i];
     }
 

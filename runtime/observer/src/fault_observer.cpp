@@ -339,8 +339,7 @@ double law_integral(const Command& c, std::size_t k, double L, double ba, double
 
 // The law's torque at (β, β̇) [N·m].
 double law_torque(const Command& c, std::size_t k, double b, double bd, double u_max) noexcept {
-  if (c.torque_off) return 0.0;
-  const double u = c.tau[k] + c.kp[k] * (c.beta_ref[k] - b) + c.kd[k] * (c.beta_dot_ref[k] - bd);
+  const double u = drivers::module_torque(c, k, b, bd);
   return u_max > 0 ? std::clamp(u, -u_max, u_max) : u;
 }
 
@@ -808,10 +807,7 @@ int FaultObserver::observe(const Feedback& fb, const CommandHistory& cmds, doubl
     const Command* applied = module_timing ? cmds.find(fb.applied_seq[k]) : &cmds.last();
     const Command& last_cmd = applied ? *applied : cmds.last();
     // Persistent saturation: the module law's demand beyond ±u_max (or the module says so).
-    const double u_demand = last_cmd.torque_off
-                                ? 0.0
-                                : last_cmd.tau[k] + last_cmd.kp[k] * (last_cmd.beta_ref[k] - fb.beta[k]) +
-                                      last_cmd.kd[k] * (last_cmd.beta_dot_ref[k] - fb.beta_dot[k]);
+    const double u_demand = drivers::module_torque(last_cmd, k, fb.beta[k], fb.beta_dot[k]);
     const bool sat = (p_.u_max > 0 && std::abs(u_demand) >= p_.u_max) ||
                      (fb.status[k] & drivers::kStatusSaturated) != 0;
     sat_lp_[k] += (1.0 - std::exp(-dt / p_.saturation_tau)) * ((sat ? 1.0 : 0.0) - sat_lp_[k]);

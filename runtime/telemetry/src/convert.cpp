@@ -69,7 +69,7 @@ void fill(const runtime::CycleSample& s, const HeaderContext& h,
   m.mode = u8(s.mode);
   copy_bounded(m.mode_name, mode_c_str(u8(s.mode)));
   m.alpha_d = view(s.alpha_d, n);
-  m.pi = view(s.pi, n);
+  m.eta = view(s.eta, n);
   m.u = view(s.u, n);
 }
 
@@ -199,7 +199,7 @@ ControllerStateMsg decode(const pedalwave_msg_dds__ControllerState_& m) {
   o.mode = m.mode;
   o.mode_name = str(m.mode_name);
   o.alpha_d = copy(m.alpha_d);
-  o.pi = copy(m.pi);
+  o.eta = copy(m.eta);
   o.u = copy(m.u);
   return o;
 }

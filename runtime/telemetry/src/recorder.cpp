@@ -118,14 +118,14 @@ void CsvRecorder::on_controller_state(const ControllerStateMsg& m, const Message
   if (!f.header_written) {
     f.joints = n;
     write_row(f, fmt::format("{},seq,stamp_ns,t,mode,mode_name", kInfoHeader) +
-                     joint_header("alpha_d", n) + joint_header("pi", n) + joint_header("u", n));
+                     joint_header("alpha_d", n) + joint_header("eta", n) + joint_header("u", n));
     f.rows = 0;
     f.header_written = true;
   }
   if (n != f.joints) ++width_mismatches_;
   write_row(f, prefix(i) +
                    fmt::format(",{},{},{},{},{}", m.seq, m.stamp_ns, m.t, m.mode, m.mode_name) +
-                   joint_values(m.alpha_d, f.joints) + joint_values(m.pi, f.joints) +
+                   joint_values(m.alpha_d, f.joints) + joint_values(m.eta, f.joints) +
                    joint_values(m.u, f.joints));
 }
 

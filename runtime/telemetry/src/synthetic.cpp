@@ -62,7 +62,7 @@ runtime::CycleSample SyntheticRobot::sample(std::uint64_t seq) const {
     s.alpha[i] = s.beta[i] - s.deflection[i];
     s.tau_sea[i] = (8.0 + 0.25 * j) * s.deflection[i];
     s.alpha_d[i] = 0.45 * std::sin(ph + 0.05);
-    s.pi[i] = eta + 0.01 * std::sin(0.1 * t + j);
+    s.eta[i] = eta + 0.01 * std::sin(0.1 * t + j);
     s.u[i] = 0.2 * std::cos(ph) + 0.001 * j;
     s.residual[i] = 0.002 * std::sin(7.0 * t + j) + (j == 2 && s.mode == runtime::Mode::kFault ? 0.3 : 0.0);
     s.tau_ext[i] = 0.05 * std::cos(3.0 * t + 0.5 * j);

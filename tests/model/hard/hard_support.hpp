@@ -90,7 +90,7 @@ class GaitLoop {
     c.period = 1.0 / rate_hz;
     c.gait.A_p = s.gait.A_p;
     c.gait.omega = s.gait.omega;
-    c.admittance.Pi_n = {s.gait.eta};
+    c.admittance.eta_n = {s.gait.eta};
     c.actuator.K = {s.robot.joints == JointModel::kFlexible ? s.robot.stiffness(0) : 1e6};
     c.actuator.reflected_inertia = {std::max(s.robot.n * s.robot.n * s.robot.I_r, 1e-12)};
     return c;

@@ -15,7 +15,7 @@ control::GaitControllerParams controller_params(const model::Scene& scene, doubl
   c.period = 1.0 / rate_hz;
   c.gait.A_p = scene.gait.A_p;
   c.gait.omega = scene.gait.omega;
-  c.admittance.Pi_n = {scene.gait.eta};
+  c.admittance.eta_n = {scene.gait.eta};
   c.admittance.k_c = k_c;
   c.actuator.K.clear();
   for (int j = 0; j < p.N - 1; ++j)

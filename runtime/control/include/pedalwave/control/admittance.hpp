@@ -42,7 +42,7 @@ struct AdmittanceParams {
   double D_d = 10.0;   // desired damping D_d [N·m·s/rad], finite, > 0
   double K_d = 17.5;   // desired stiffness K_d [N·m/rad], finite, > 0
   double k_c = 0.0;    // coupling gain k_c [-] (k_c Q_e is a torque like K_d Π), finite; 0 = open loop
-  std::vector<double> Pi_n{-2.0 * std::numbers::pi / 5.0};  // nominal η_n,j [rad], (1 or N−1)
+  std::vector<double> eta_n{-2.0 * std::numbers::pi / 5.0};  // nominal η_n,j [rad], (1 or N−1)
   double eta_min = -std::numeric_limits<double>::infinity();  // lower bound on η_j [rad]
   double eta_max = std::numeric_limits<double>::infinity();   // upper bound on η_j [rad]
 };
@@ -78,21 +78,21 @@ class Admittance {
   int joints() const noexcept { return joints_; }
   const AdmittanceParams& params() const noexcept { return params_; }
   // η_n,j for 0-based joint index i [rad].
-  double Pi_n(int i) const noexcept { return Pi_n_[static_cast<std::size_t>(i)]; }
+  double eta_n(int i) const noexcept { return Pi_n_[static_cast<std::size_t>(i)]; }
   const AdmittanceZoh& nominal_zoh() const noexcept { return nominal_; }
 
   // Π = Π_n, Π̇ = 0, ZOH cache = nominal period.
   void reset(AdmittanceState& s) const noexcept;
 
   // η_j (0-based i) [rad]: Π_n + x; exactly Π_n while x == 0.
-  double Pi(const AdmittanceState& s, int i) const noexcept {
+  double eta(const AdmittanceState& s, int i) const noexcept {
     return Pi_n_[static_cast<std::size_t>(i)] + s.x[static_cast<std::size_t>(i)];
   }
-  double Pi_dot(const AdmittanceState& s, int i) const noexcept {
+  double eta_dot(const AdmittanceState& s, int i) const noexcept {
     return s.v[static_cast<std::size_t>(i)];
   }
   // η̈_j from the law itself for the current Q_e [N·m]: (k_c Q_e − D_d v − K_d x) / M_d [rad/s²].
-  double Pi_ddot(const AdmittanceState& s, int i, double Q_e) const noexcept;
+  double eta_ddot(const AdmittanceState& s, int i, double Q_e) const noexcept;
 
   // Advances every joint from t to t + dt with Q_e [N·m] (N−1 values) held over the interval.
   // Joint i with a non-finite Q_e (and k_c ≠ 0) is held and flagged kJointBadTorque; a joint whose

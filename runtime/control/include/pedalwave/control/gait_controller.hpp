@@ -32,7 +32,7 @@
 #include "pedalwave/control/admittance.hpp"
 #include "pedalwave/control/gait.hpp"
 #include "pedalwave/control/joint_pd.hpp"
-#include "pedalwave/control/stability.hpp"
+#include "pedalwave/control/host_pd_stability.hpp"
 #include "pedalwave/control/types.hpp"
 #include "pedalwave/interface/io.hpp"
 
@@ -74,7 +74,7 @@ struct GaitControllerState {
   AdmittanceState admittance;  // Π − Π_n, Π̇, cached ZOH
   JointArray u_prev{};       // last limited torque, for the rate limit [N·m], (N−1)
   JointArray alpha_d_held{}; // α^d of the last running update (output while frozen) [rad], (N−1)
-  JointArray Pi_held{};      // η_j of the last running update (output while frozen) [rad], (N−1)
+  JointArray eta_held{};      // η_j of the last running update (output while frozen) [rad], (N−1)
 };
 
 // Results of one update. Plain data, fixed size.
@@ -88,9 +88,9 @@ struct ControlOutput {
   JointArray alpha_d{};        // α^d_j [rad]
   JointArray alpha_d_dot{};    // α̇^d_j [rad/s]
   JointArray alpha_d_ddot{};   // α̈^d_j [rad/s²]
-  JointArray Pi{};             // η_j [rad]
-  JointArray Pi_dot{};         // η̇_j [rad/s]
-  JointArray Pi_ddot{};        // η̈_j [rad/s²]
+  JointArray eta{};             // η_j [rad]
+  JointArray eta_dot{};         // η̇_j [rad/s]
+  JointArray eta_ddot{};        // η̈_j [rad/s²]
   JointArray Q_e{};            // measured SEA torque K_j (α_j − β_j) = −K_j·deflection_j [N·m]
   JointFlags flags{};          // JointFlag bits (saturation: flags & kJointSaturated)
   bool saturated(int j) const noexcept {

@@ -7,7 +7,7 @@
 //  - kHost:   u is computed here at the control rate and sent as a torque (Command::tau = u,
 //             kp = kd = 0); the module holds it until the next cycle (zero-order hold). Stable only
 //             if the control period is short enough for the reflected rotor inertia J = n² I_r:
-//             see stability.hpp (T < 2 J / K_D is necessary; ≈ 0.43 ms for the defaults, i.e.
+//             see host_pd_stability.hpp (T < 2 J / K_D is necessary; ≈ 0.43 ms for the defaults, i.e.
 //             1 kHz is UNSTABLE) — GaitController refuses an unstable host-side configuration.
 //  - kModule: the module applies u_j = tau_j + kp_j (beta_ref_j − β_j) + kd_j (beta_dot_ref_j − β̇_j)
 //             at its own internal rate (interface/io.hpp), with beta_ref = α^d, beta_dot_ref = α̇^d,

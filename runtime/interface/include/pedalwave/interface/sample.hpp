@@ -65,7 +65,7 @@ struct CycleSample {
   std::array<double, kMaxJoints> tau_sea{};     // SEA torque K(β − α) [N·m]
   // Controller state
   std::array<double, kMaxJoints> alpha_d{};     // desired joint angle [rad]
-  std::array<double, kMaxJoints> pi{};          // spatial frequencies Π = η_j [rad]
+  std::array<double, kMaxJoints> eta{};         // spatial frequencies Π = [η_j] [rad]
   std::array<double, kMaxJoints> u{};           // commanded torque (output side) [N·m]
   // Observer
   std::array<double, kMaxJoints> residual{};    // motor-side momentum residual [N·m]

@@ -37,7 +37,7 @@ struct ControllerStateMsg {           // rt<ns>/pedalwave/controller_state
   std::uint8_t mode = 0;              // runtime::Mode
   std::string mode_name;
   std::vector<double> alpha_d;        // α^d [rad], (N-1)
-  std::vector<double> pi;             // Π [rad], (N-1)
+  std::vector<double> eta;            // Π = [η_j] [rad], (N-1)
   std::vector<double> u;              // commanded torque [N·m], (N-1)
   std::int64_t ros_stamp_ns = 0;      // header.stamp: ROS time (CLOCK_REALTIME unless configured) [ns]
 };

@@ -1,4 +1,4 @@
-#include "pedalwave/control/stability.hpp"
+#include "pedalwave/control/host_pd_stability.hpp"
 
 #include <cmath>
 #include <limits>

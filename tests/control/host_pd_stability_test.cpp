@@ -9,7 +9,7 @@
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
 
-#include "pedalwave/control/stability.hpp"
+#include "pedalwave/control/host_pd_stability.hpp"
 
 namespace pc = pedalwave::control;
 

@@ -1,11 +1,15 @@
 #include "pedalwave/model/plant.hpp"
 
+#include "pedalwave/interface/io.hpp"
 #include "pedalwave/interface/sea.hpp"
 
 #include <algorithm>
 #include <cmath>
 
 namespace pedalwave::model {
+
+// The model's largest robot is the one the driver interface can carry (one bound, two headers).
+static_assert(kMaxLinks == drivers::kMaxLinks, "model::kMaxLinks and drivers::kMaxLinks must agree");
 
 const char* to_string(FrictionLaw f) {
   switch (f) {

@@ -33,99 +33,20 @@
 #include <vector>
 
 #include "pedalwave/drivers/canopen_driver.hpp"
+#include "candump.hpp"
 #include "walk_rig.hpp"
 
 using namespace pedalwave;
+using test::Candump;
+using test::find_on_path;
+using test::Frame;
+using test::parse;
+using test::vcan_required;
 
 namespace {
 
 constexpr const char* kIf = "vcan0";
 
-bool vcan_required() {
-  const char* v = std::getenv("PEDALWAVE_REQUIRE_VCAN");
-  return v != nullptr && std::string(v) == "1";
-}
-
-std::string find_on_path(const std::string& name) {
-  const char* path = std::getenv("PATH");
-  std::stringstream dirs(path != nullptr ? path : "/usr/bin:/bin");
-  std::string dir;
-  while (std::getline(dirs, dir, ':')) {
-    const std::string c = (dir.empty() ? "." : dir) + "/" + name;
-    if (::access(c.c_str(), X_OK) == 0) return c;
-  }
-  return {};
-}
-
-#define CANOPEN_SKIP_OR_FAIL(msg)                                                                  \
-  do {                                                                                             \
-    if (vcan_required()) GTEST_FAIL() << "PEDALWAVE_REQUIRE_VCAN=1: " << msg;                      \
-    std::fprintf(stderr, "\n*** SKIPPED: %s\n*** Run it inside the test VM: "                      \
-                 "tools/scripts/vm/test-vcan.sh <build dir>\n\n", std::string(msg).c_str());      \
-    GTEST_SKIP() << msg;                                                                           \
-  } while (0)
-
-// `candump -L -d -r 4194304 vcan0` into a file.
-class Candump {
- public:
-  Candump(const std::string& exe, const std::string& file) : file_(file) {
-    const int out = ::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (out < 0) return;
-    std::string a0 = exe, a1 = "-L", a2 = "-d", a3 = "-r", a4 = "4194304", a5 = kIf;
-    char* argv[] = {a0.data(), a1.data(), a2.data(), a3.data(), a4.data(), a5.data(), nullptr};
-    const pid_t parent = ::getpid();
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      if (::prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || ::getppid() != parent) ::_exit(126);
-      if (::dup2(out, STDOUT_FILENO) < 0) ::_exit(126);
-      ::execv(exe.c_str(), argv);
-      ::_exit(127);
-    }
-    ::close(out);
-  }
-  ~Candump() { stop(); }
-  bool running() const { return pid_ > 0; }
-  void stop() {
-    if (pid_ <= 0) return;
-    ::kill(pid_, SIGTERM);
-    int status = 0;
-    ::waitpid(pid_, &status, 0);
-    pid_ = -1;
-  }
-  std::vector<std::string> lines() const {
-    std::ifstream in(file_);
-    std::vector<std::string> v;
-    for (std::string l; std::getline(in, l);) v.push_back(l);
-    return v;
-  }
-
- private:
-  std::string file_;
-  pid_t pid_ = -1;
-};
-
-// One `candump -L` line: "(1700000000.123456) vcan0 181#0011223344556677".
-struct Frame {
-  unsigned id = 0;
-  std::vector<std::uint8_t> data;
-};
-std::optional<Frame> parse(const std::string& l) {
-  const auto close = l.find(") ");
-  if (l.empty() || l[0] != '(' || close == std::string::npos) return std::nullopt;
-  const auto sp = l.find(' ', close + 2);
-  if (sp == std::string::npos) return std::nullopt;
-  std::string fr = l.substr(sp + 1);
-  while (!fr.empty() && (fr.back() == '\r' || fr.back() == ' ')) fr.pop_back();
-  const auto hash = fr.find('#');
-  if (hash == std::string::npos || hash == 0 || hash > 3) return std::nullopt;  // 11-bit ids only
-  Frame f;
-  f.id = static_cast<unsigned>(std::stoul(fr.substr(0, hash), nullptr, 16));
-  const std::string rest = fr.substr(hash + 1);
-  if (rest.size() % 2 != 0 || (!rest.empty() && rest[0] == '#')) return std::nullopt;
-  for (std::size_t i = 0; i < rest.size(); i += 2)
-    f.data.push_back(static_cast<std::uint8_t>(std::stoul(rest.substr(i, 2), nullptr, 16)));
-  return f;
-}
 std::uint16_t le16(const std::vector<std::uint8_t>& d, std::size_t i) {
   return static_cast<std::uint16_t>(d[i] | (d[i + 1] << 8));
 }
@@ -143,11 +64,11 @@ std::int32_t le32(const std::vector<std::uint8_t>& d, std::size_t i) {
 // rightly. CST is walked over a socket pair (vrobot_canopen_test); this test is about the bus.
 TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
   if (!drivers::can_sockets_available())
-    CANOPEN_SKIP_OR_FAIL("this kernel has no PF_CAN (socket(AF_CAN) fails)");
+    VCAN_SKIP_OR_FAIL("this kernel has no PF_CAN (socket(AF_CAN) fails)");
   if (::if_nametoindex(kIf) == 0)
-    CANOPEN_SKIP_OR_FAIL("PF_CAN works but there is no vcan0 (ip link add dev vcan0 type vcan && ip link set up vcan0)");
+    VCAN_SKIP_OR_FAIL("PF_CAN works but there is no vcan0 (ip link add dev vcan0 type vcan && ip link set up vcan0)");
   const std::string exe = find_on_path("candump");
-  if (exe.empty()) CANOPEN_SKIP_OR_FAIL("candump (Debian package can-utils) is not on PATH");
+  if (exe.empty()) VCAN_SKIP_OR_FAIL("candump (Debian package can-utils) is not on PATH");
 
   const model::Scene scene = config::load_scene(test::kScenePath);
   const int J = scene.robot.N - 1;

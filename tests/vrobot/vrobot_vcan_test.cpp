@@ -30,114 +30,20 @@
 #include "dds_domain_lease.hpp"
 #include "pedalwave/runtime/run_events.hpp"
 #include "pedalwave/toolkit/cpu_load.hpp"
+#include "candump.hpp"
 #include "walk_rig.hpp"
 
 using namespace pedalwave;
+using test::Candump;
+using test::find_on_path;
+using test::Frame;
+using test::parse;
+using test::vcan_required;
 
 namespace {
 
 constexpr const char* kIf = "vcan0";
 constexpr canid_t kMarkerStart = 0x7F0, kMarkerEnd = 0x7F1;
-
-bool vcan_required() {
-  const char* v = std::getenv("PEDALWAVE_REQUIRE_VCAN");
-  return v != nullptr && std::string(v) == "1";
-}
-
-std::string find_on_path(const std::string& name) {
-  const char* path = std::getenv("PATH");
-  std::stringstream dirs(path != nullptr ? path : "/usr/bin:/bin");
-  std::string dir;
-  while (std::getline(dirs, dir, ':')) {
-    const std::string c = (dir.empty() ? "." : dir) + "/" + name;
-    if (::access(c.c_str(), X_OK) == 0) return c;
-  }
-  return {};
-}
-
-#define VROBOT_SKIP_OR_FAIL(msg)                                                       \
-  do {                                                                                 \
-    if (vcan_required()) GTEST_FAIL() << "PEDALWAVE_REQUIRE_VCAN=1: " << msg;          \
-    std::fprintf(stderr, "\n*** SKIPPED: %s\n*** Run it inside the test VM: "          \
-                 "tools/scripts/vm/test-vcan.sh <build dir>\n\n", std::string(msg).c_str()); \
-    GTEST_SKIP() << msg;                                                               \
-  } while (0)
-
-// `candump -L -d -r 4194304 vcan0` writing into a file (no pipe back-pressure on candump while
-// the loop runs: 3000 frames/s).
-class Candump {
- public:
-  Candump(const std::string& exe, const std::string& file) : file_(file) {
-    const int out = ::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (out < 0) return;
-    std::string a0 = exe, a1 = "-L", a2 = "-d", a3 = "-r", a4 = "4194304", a5 = kIf;
-    char* argv[] = {a0.data(), a1.data(), a2.data(), a3.data(), a4.data(), a5.data(), nullptr};
-    const pid_t parent = ::getpid();
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      if (::prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || ::getppid() != parent) ::_exit(126);
-      if (::dup2(out, STDOUT_FILENO) < 0) ::_exit(126);
-      ::execv(exe.c_str(), argv);
-      ::_exit(127);
-    }
-    ::close(out);
-  }
-  ~Candump() { stop(); }
-  bool running() const { return pid_ > 0; }
-  int stop() {
-    if (pid_ <= 0) return -1;
-    ::kill(pid_, SIGTERM);
-    int status = 0;
-    ::waitpid(pid_, &status, 0);
-    pid_ = -1;
-    return status;
-  }
-  // The lines candump has written so far.
-  std::vector<std::string> lines() const {
-    std::ifstream in(file_);
-    std::vector<std::string> v;
-    for (std::string l; std::getline(in, l);) v.push_back(l);
-    return v;
-  }
-
- private:
-  std::string file_;
-  pid_t pid_ = -1;
-};
-
-// One `candump -L` line: "(1700000000.123456) vcan0 181#0011223344556677".
-struct Frame {
-  double stamp_s = 0;
-  std::string iface;
-  canid_t id = 0;
-  bool fd = false;
-  std::vector<std::uint8_t> data;
-};
-
-std::optional<Frame> parse(const std::string& l) {
-  Frame f;
-  const auto close = l.find(") ");
-  if (l.empty() || l[0] != '(' || close == std::string::npos) return std::nullopt;
-  f.stamp_s = std::strtod(l.c_str() + 1, nullptr);
-  const auto sp = l.find(' ', close + 2);
-  if (sp == std::string::npos) return std::nullopt;
-  f.iface = l.substr(close + 2, sp - close - 2);
-  std::string fr = l.substr(sp + 1);
-  while (!fr.empty() && (fr.back() == '\r' || fr.back() == ' ')) fr.pop_back();
-  const auto hash = fr.find('#');
-  if (hash == std::string::npos || hash == 0) return std::nullopt;
-  f.id = static_cast<canid_t>(std::stoul(fr.substr(0, hash), nullptr, 16));
-  if (hash == 8) f.id |= CAN_EFF_FLAG;
-  std::string rest = fr.substr(hash + 1);
-  if (!rest.empty() && rest[0] == '#') {
-    f.fd = true;
-    rest = rest.size() >= 2 ? rest.substr(2) : "";
-  }
-  if (rest.size() % 2 != 0) return std::nullopt;
-  for (std::size_t i = 0; i < rest.size(); i += 2)
-    f.data.push_back(static_cast<std::uint8_t>(std::stoul(rest.substr(i, 2), nullptr, 16)));
-  return f;
-}
 
 // CRC-8/SAE-J1850 (poly 0x1D, init 0xFF, xorout 0xFF) over the 11-bit id as 2 bytes little-endian
 // and data[0 … len−2] (PROTOCOL.md §2), written from the specification for this test.
@@ -198,11 +104,11 @@ std::vector<std::string> wait_marker(const Candump& d, canid_t id, int s, bool r
 
 TEST(VrobotVcan, RuntimeWalksOverVcanAndCandumpSeesTheProtocol) {
   if (!drivers::can_sockets_available())
-    VROBOT_SKIP_OR_FAIL("this kernel has no PF_CAN (socket(AF_CAN) fails)");
+    VCAN_SKIP_OR_FAIL("this kernel has no PF_CAN (socket(AF_CAN) fails)");
   if (::if_nametoindex(kIf) == 0)
-    VROBOT_SKIP_OR_FAIL("no vcan0 (ip link add dev vcan0 type vcan && ip link set up vcan0)");
+    VCAN_SKIP_OR_FAIL("no vcan0 (ip link add dev vcan0 type vcan && ip link set up vcan0)");
   const std::string exe = find_on_path("candump");
-  if (exe.empty()) VROBOT_SKIP_OR_FAIL("candump (can-utils) not on PATH");
+  if (exe.empty()) VCAN_SKIP_OR_FAIL("candump (can-utils) not on PATH");
 
   // The VM emulates the CPU (TCG: 10–30× slower than the host, ~100× when the host is at load
   // 12): 100 Hz (the controller's lowest rate), the virtual robot's plant at h ≤ 2.5e-4 s as in
@@ -529,8 +435,8 @@ std::string listed_events(const test::WalkResult& r) {
 
 TEST(VrobotVcan, DeploymentWalks60sObserverAndTelemetryOnUnderCpuLoad) {
   if (!drivers::can_sockets_available())
-    VROBOT_SKIP_OR_FAIL("this kernel has no PF_CAN (socket(AF_CAN) fails)");
-  if (::if_nametoindex(kIf) == 0) VROBOT_SKIP_OR_FAIL("no vcan0");
+    VCAN_SKIP_OR_FAIL("this kernel has no PF_CAN (socket(AF_CAN) fails)");
+  if (::if_nametoindex(kIf) == 0) VCAN_SKIP_OR_FAIL("no vcan0");
   test::DomainLease lease;
   const model::Scene scene = config::load_scene(test::kScenePath);
   const test::WalkSetup s = vm_deployment(60, lease.id());
@@ -572,8 +478,8 @@ class VrobotVcanFaults : public ::testing::TestWithParam<VcanFault> {};
 
 TEST_P(VrobotVcanFaults, DetectedAndIsolatedOverVcan) {
   if (!drivers::can_sockets_available())
-    VROBOT_SKIP_OR_FAIL("this kernel has no PF_CAN (socket(AF_CAN) fails)");
-  if (::if_nametoindex(kIf) == 0) VROBOT_SKIP_OR_FAIL("no vcan0");
+    VCAN_SKIP_OR_FAIL("this kernel has no PF_CAN (socket(AF_CAN) fails)");
+  if (::if_nametoindex(kIf) == 0) VCAN_SKIP_OR_FAIL("no vcan0");
   const VcanFault f = GetParam();
   test::DomainLease lease;
   model::Scene scene = config::load_scene(test::kScenePath);

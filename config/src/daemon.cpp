@@ -105,6 +105,7 @@ constexpr DriverKey kDriverKeys[] = {
     {"drive_mode", "the socketcan driver's", false, true, false},         // protocol: canopen only
     {"heartbeat", "the socketcan driver's", false, true, false},          // protocol: canopen only
     {"heartbeat_timeout", "the socketcan driver's", false, true, false},  // protocol: canopen only
+    {"sync_window", "the socketcan driver's", false, true, false},        // protocol: canopen only
     {"device", "the serial driver's", false, false, true},
     {"baud", "the serial driver's", false, false, true},
     {"return_delay", "the serial driver's", false, false, true},
@@ -176,7 +177,7 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
     // drivers/PROTOCOL.md §7).
     const bool canopen = r.choice("protocol", "pedalwave", {"pedalwave", "canopen"}) == "canopen";
     d.can.protocol = canopen ? drivers::CanProtocol::kCanOpen : drivers::CanProtocol::kPedalwave;
-    for (const char* key : {"nodes", "drive_mode", "heartbeat", "heartbeat_timeout"})
+    for (const char* key : {"nodes", "drive_mode", "heartbeat", "heartbeat_timeout", "sync_window"})
       if (!canopen && r.has(key))
         r[key].fail(std::string("no ") + key + " without protocol: canopen (" + key + " is the CANopen master's)");
     if (canopen) {
@@ -203,6 +204,8 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
       // 1017h holds whole milliseconds (1 … 65535).
       o.heartbeat_s = r.bounded("heartbeat", 0.05, 0.001, 65.535, "s");
       o.heartbeat_timeout_s = r.bounded("heartbeat_timeout", 3 * o.heartbeat_s, 0, 100, "s", true);
+      // 1007h: the drives' synchronous window as a share of the SYNC period; 0 = none.
+      o.sync_window = r.bounded("sync_window", 0.8, 0, 0.95, "of the SYNC period");
       if (!(o.heartbeat_timeout_s > o.heartbeat_s)) {
         std::ostringstream os;
         os << "a number > driver.heartbeat = " << o.heartbeat_s << " (the consumer waits longer than the producer's period)";

@@ -111,6 +111,9 @@ CanOpenDriver::CanOpenDriver(int fd, const SocketCanConfig& cfg) : fd_(fd), join
       throw std::invalid_argument("CANopen: heartbeat " + std::to_string(cfg.canopen.heartbeat_s) +
                                   " s, heartbeat_timeout " + std::to_string(cfg.canopen.heartbeat_timeout_s) +
                                   " s; expected 0 < heartbeat ≤ 65.535 s < heartbeat_timeout");
+    if (!(cfg.canopen.sync_window >= 0 && cfg.canopen.sync_window < 1))
+      throw std::invalid_argument("CANopen: sync_window " + std::to_string(cfg.canopen.sync_window) +
+                                  "; expected a share of the SYNC period in [0, 1) (0: no synchronous window)");
     hb_timeout_ns_ = std::llround(cfg.canopen.heartbeat_timeout_s * 1e9);
     bring_up();
   } catch (...) {
@@ -339,6 +342,12 @@ void CanOpenDriver::bring_up() {
       rpdo(0, {mapping(cia402::kObjControlword, 0, 16), mapping(cia402::kObjTargetTorque, 0, 16)});
       rpdo(1, {});
     }
+    // The SYNC period and the synchronous window (CiA 301 1006h, 1007h [µs]): no TPDO later than
+    // the window after its SYNC, so the TPDOs before the next SYNC answer this one.
+    const auto period_us = static_cast<std::uint32_t>(std::llround(cfg_.period_s * 1e6));
+    sdo_download(j, co::kObjCyclePeriod, 0, period_us, 4, "communication cycle period");
+    sdo_download(j, co::kObjSyncWindow, 0, static_cast<std::uint32_t>(std::llround(period_us * o.sync_window)), 4,
+                 "synchronous window length");  // 0: none
     const auto hb_ms = static_cast<std::uint32_t>(std::llround(o.heartbeat_s * 1e3));
     sdo_download(j, 0x1017, 0, std::max<std::uint32_t>(hb_ms, 1), 2, "producer heartbeat time");
     sdo_download(j, cia402::kObjModesOfOperation, 0,
@@ -530,10 +539,33 @@ void CanOpenDriver::handle(const can_frame& f, std::int64_t stamp, bool before_s
     ++counters_.malformed;
     return;
   }
-  if (before_sync || stamp > deadline_ns_) {  // the answer to an older SYNC, or too late for this one
+  if (before_sync || stamp < t_sync_ns_) {
+    // Queued before this read's SYNC went out: within the drive's synchronous window of the
+    // previous SYNC (1007h), so its answer, late. Kept as that SYNC's sample (read()).
     ++counters_.late;
     status_[ju] |= kStatusLate;
+    if (prev_sync_.cycle == 0) return;  // no SYNC before this one: nothing it answers
+    bool& got = t1 ? late1_[ju] : late2_[ju];
+    if (got) {
+      ++counters_.duplicate;
+      return;
+    }
+    got = true;
+    if (t1) {
+      late_statusword_[ju] = u16(f.data);
+      late_beta_[ju] = static_cast<std::int32_t>(u32(f.data + 2)) * rad_per_inc_[ju];
+      late_torque_[ju] = static_cast<std::int16_t>(u16(f.data + 6)) * nm_per_permille_[ju];
+    } else {
+      late_beta_dot_[ju] = static_cast<std::int32_t>(u32(f.data)) * rad_per_inc_[ju];
+      late_defl_[ju] = static_cast<std::int32_t>(u32(f.data + 4)) * defl_rad_per_inc_[ju];
+    }
     return;
+  }
+  // This SYNC's answer; one that came after the deadline (drained in this read's last poll) is
+  // still this SYNC's sample, flagged.
+  if (stamp > deadline_ns_) {
+    ++counters_.late;
+    status_[ju] |= kStatusLate;
   }
   bool& got = t1 ? got1_[ju] : got2_[ju];
   if (got) {
@@ -556,9 +588,12 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   ++cycle_;
   got1_.fill(false);
   got2_.fill(false);
+  late1_.fill(false);
+  late2_.fill(false);
   status_.fill(0);
   deadline_ns_ = deadline_ns;
   bus_error_cycle_ = false;
+  prev_sync_ = last_sync_;  // the SYNC whose late answers this read's first drain gathers
   const std::int64_t rt_off = detail::clock_ns(CLOCK_REALTIME) - detail::monotonic_ns();
   drain(rt_off, true);
   // The RPDOs written last cycle act from this SYNC on; the sample this SYNC takes is the end of
@@ -573,6 +608,8 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   // wire before it (last cycle's RPDOs of a late write, answers still coming), then its own bits.
   const std::int64_t t_sync = detail::monotonic_ns();
   sync_lower_ns_ = (wire_busy_ns_ > t_sync ? wire_busy_ns_ : t_sync) + sync_wire_ns_;
+  t_sync_ns_ = t_sync;
+  last_sync_ = SyncRecord{cycle_, sync_lower_ns_, prev_acting_seq_, prev_sync_ns_};
   const Tx tx = send(sync);
   auto complete = [&]() noexcept {
     for (int j = 0; j < joints_; ++j)
@@ -605,28 +642,52 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
                  static_cast<unsigned>((now - last_hb_ns_[ju]) / 1'000'000),
                  static_cast<unsigned>(hb_timeout_ns_ / 1'000'000), "");
     }
+    const bool have = got1_[ju] && got2_[ju];
+    const bool have_late = late1_[ju] && late2_[ju] && prev_sync_.cycle != 0;
+    const bool use_late = !have && have_late && handed_cycle_[ju] < prev_sync_.cycle;
+    if (use_late) statusword_[ju] = late_statusword_[ju];
     const cia402::State ds = cia402::decode_statusword(statusword_[ju]);
     if (ds == cia402::State::kFault && !faulted_[ju]) {
       faulted_[ju] = true;
       note_fault(j, "drive in Fault (statusword %04Xh, error code %04Xh)%s", statusword_[ju], emcy_[ju], "");
     }
-    const bool have = got1_[ju] && got2_[ju];
     out.sample_ns[ju] = 0;
     out.applied_ns[ju] = 0;
     out.late_applied_ns[ju] = 0;
     if (lost_[ju]) {
       st |= kStatusMissing;
       ++counters_.missing;
-    } else if (!have) {
-      st |= kStatusMissing;
-      ++counters_.missing;
-    } else {
+    } else if (have) {
       ++fresh;
       out.sample_ns[ju] = sync_lower_ns_;
       // The command applied last before this sample: the one the previous SYNC put in force (this
       // SYNC's takes effect as the sample is taken, and acts over the next interval).
       out.applied_seq[ju] = prev_acting_seq_;
       out.applied_ns[ju] = prev_sync_ns_;
+      handed_cycle_[ju] = cycle_;
+      if (have_late && prev_sync_.applied_ns != 0) {
+        // The previous SYNC's answer came late as well: when its command took effect (the
+        // observer places a lost sample's command with it).
+        out.late_applied_seq[ju] = prev_sync_.applied_seq;
+        out.late_applied_ns[ju] = prev_sync_.applied_ns;
+      }
+    } else if (use_late) {
+      // No fresh pair, but the previous SYNC's came after that read's deadline: an older sample,
+      // at that SYNC's time, with the command that SYNC's sample had applied.
+      ++fresh;
+      ++counters_.late_used;
+      st |= kStatusLate;
+      beta_[ju] = late_beta_[ju];
+      beta_dot_[ju] = late_beta_dot_[ju];
+      defl_[ju] = late_defl_[ju];
+      torque_[ju] = late_torque_[ju];
+      out.sample_ns[ju] = prev_sync_.lower_ns;
+      out.applied_seq[ju] = prev_sync_.applied_seq;
+      out.applied_ns[ju] = prev_sync_.applied_ns;
+      handed_cycle_[ju] = prev_sync_.cycle;
+    } else {
+      st |= kStatusMissing;
+      ++counters_.missing;
     }
     if (faulted_[ju]) st |= kStatusStale | kStatusTorqueOff;
     else if (ds != cia402::State::kOperationEnabled) st |= kStatusTorqueOff;

@@ -320,6 +320,9 @@ const std::vector<KeyRow> kDaemonKeys = {
     {"driver.heartbeat_timeout",
      "rate_hz: 100\ndriver:\n  type: socketcan\n  protocol: canopen\n  drive_mode: csp\n  heartbeat_timeout: @\n", "0.5", "x",
      "0", "a number in (0, 100] [s]"},
+    {"driver.sync_window",
+     "rate_hz: 100\ndriver:\n  type: socketcan\n  protocol: canopen\n  drive_mode: csp\n  sync_window: @\n", "0.5", "x",
+     "1", "a number in [0, 0.95] [of the SYNC period]"},
     // 3500000 was in [9600, 4e6] and loaded; opening the port refused it (the driver's kSerialBauds).
     {"driver.baud", "rate_hz: 250\ndriver:\n  type: serial\n  baud: @\n", "1000000", "x", "3500000",
      "one of the standard rates 9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 921600, 1000000, "
@@ -504,7 +507,7 @@ const std::map<std::string, std::set<std::string>> kDriverKeyTypes = {
     {"turnaround", {"serial"}},  {"devices", {"serial"}},    {"torque_constant", {"serial"}},
     {"sensor_id_offset", {"serial"}}, {"set_operating_mode", {"serial"}},
     {"protocol", {"socketcan"}},  {"nodes", {"socketcan"}},    {"drive_mode", {"socketcan"}},
-    {"heartbeat", {"socketcan"}}, {"heartbeat_timeout", {"socketcan"}},
+    {"heartbeat", {"socketcan"}}, {"heartbeat_timeout", {"socketcan"}}, {"sync_window", {"socketcan"}},
     {"max_stale_cycles", {"serial"}},
 };
 }  // namespace

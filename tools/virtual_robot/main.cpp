@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "pedalwave/config/scene.hpp"
+#include "pedalwave/drivers/canopen_emulator.hpp"
 #include "pedalwave/model/integrators.hpp"
 #include "pedalwave/vrobot/virtual_robot.hpp"
 
@@ -136,6 +137,14 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"pedalwave", "canopen"}))->capture_default_str();
   app.add_option("--cpu", cpu, "pin the modules' thread to this CPU (−1 = no pinning)")
       ->check(CLI::Range(-1, 1023))->capture_default_str();
+  bool print_eds = false;
+  app.add_flag("--print-eds", print_eds, "print the CANopen drives' EDS (CiA 306; the shipped "
+               "drivers/canopen/pedalwave_module.eds) and exit; needs no other option");
+  for (int i = 1; i < argc; ++i)  // before the parse: --scene is not needed for it
+    if (std::string(argv[i]) == "--print-eds") {
+      std::fputs(pedalwave::drivers::canopen::module_eds().c_str(), stdout);
+      return 0;
+    }
   if (const auto rc = pedalwave::toolkit::cli::parse(app, argc, argv, "pedalwave_virtual_robot")) return *rc;
   if (can_if.empty() && !pty) return bad_input("give the bus: --can IFNAME [--fd] or --pty");
   if (fd && pty) return bad_input("--fd is a CAN option; the serial bus (--pty) has no FD frames");

@@ -29,6 +29,10 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr ObjectEntry kDictionary[] = {
     {0x1000, 0, 7, "Device type", "Device type", DT::kUnsigned32, AC::kRo, false, kDeviceType, false, nullptr},
     {0x1001, 0, 7, "Error register", "Error register", DT::kUnsigned8, AC::kRo, false, 0, false, nullptr},
+    {0x1006, 0, 7, "Communication cycle period", "Communication cycle period", DT::kUnsigned32, AC::kRw, false, 0,
+     false, nullptr},
+    {0x1007, 0, 7, "Synchronous window length", "Synchronous window length", DT::kUnsigned32, AC::kRw, false, 0,
+     false, nullptr},
     {0x1008, 0, 7, "Manufacturer device name", "Manufacturer device name", DT::kVisibleString, AC::kConst, false, 0,
      false, "pedalwave SEA module"},
     {0x1017, 0, 7, "Producer heartbeat time", "Producer heartbeat time", DT::kUnsigned16, AC::kRw, false, 0, false,
@@ -121,7 +125,7 @@ constexpr bool has_index(std::uint16_t index) noexcept {
   return false;
 }
 // Entries the emulator uses by name.
-constexpr int kE1001 = find_entry(0x1001, 0), kE1017 = find_entry(0x1017, 0),
+constexpr int kE1001 = find_entry(0x1001, 0), kE1007 = find_entry(kObjSyncWindow, 0), kE1017 = find_entry(0x1017, 0),
               kE603F = find_entry(kObjErrorCode, 0), kE6040 = find_entry(cia402::kObjControlword, 0),
               kE6041 = find_entry(cia402::kObjStatusword, 0),
               kE6060 = find_entry(cia402::kObjModesOfOperation, 0),
@@ -136,7 +140,7 @@ constexpr int kE1001 = find_entry(0x1001, 0), kE1017 = find_entry(0x1017, 0),
               kE6004 = find_entry(kObjDeflection, 0), kE60B1 = find_entry(kObjVelocityOffset, 0),
               kE60B2 = find_entry(kObjTorqueOffset, 0), kE2010 = find_entry(kObjCspKp, 0),
               kE2011 = find_entry(kObjCspKd, 0);
-static_assert(kE1001 >= 0 && kE1017 >= 0 && kE603F >= 0 && kE6040 >= 0 && kE6041 >= 0 && kE6060 >= 0 &&
+static_assert(kE1001 >= 0 && kE1007 >= 0 && kE1017 >= 0 && kE603F >= 0 && kE6040 >= 0 && kE6041 >= 0 && kE6060 >= 0 &&
               kE6061 >= 0 && kE6064 >= 0 && kE606C >= 0 && kE6071 >= 0 && kE6076 >= 0 && kE6077 >= 0 &&
               kE607A >= 0 && kE608F1 >= 0 && kE6001 >= 0 && kE6004 >= 0 && kE60B1 >= 0 && kE60B2 >= 0 &&
               kE2010 >= 0 && kE2011 >= 0);
@@ -431,7 +435,7 @@ void CanOpenModuleEmulator::reset(int j, bool whole_node, std::int64_t now, bool
   }
 }
 
-void CanOpenModuleEmulator::send(const can_frame& f, std::int64_t now, bool pdo) noexcept {
+void CanOpenModuleEmulator::send(const can_frame& f, std::int64_t now, bool pdo, std::int64_t window_end_ns) noexcept {
   const std::size_t next = (tail_ + 1) % queue_.size();
   if (next == head_) {
     bank_.stats().replies_dropped.fetch_add(1, std::memory_order_relaxed);
@@ -441,6 +445,7 @@ void CanOpenModuleEmulator::send(const can_frame& f, std::int64_t now, bool pdo)
   p.due_ns = wire_.occupy(now, wire_ns(f.len)) + (pdo ? bank_.latency_ns() : 0);
   p.frame = f;
   p.pdo = pdo;
+  p.window_end_ns = window_end_ns;
   tail_ = next;
 }
 
@@ -448,6 +453,11 @@ void CanOpenModuleEmulator::flush(std::int64_t now) noexcept {
   blocked_ = false;
   while (head_ != tail_ && queue_[head_].due_ns <= now) {
     const Pending& p = queue_[head_];
+    if (p.pdo && p.window_end_ns != 0 && now > p.window_end_ns) {  // its window closed: discarded
+      window_dropped.fetch_add(1, std::memory_order_relaxed);
+      head_ = (head_ + 1) % queue_.size();
+      continue;
+    }
     const ssize_t r = ::send(fd_, &p.frame, CAN_MTU, MSG_DONTWAIT | MSG_NOSIGNAL);
     if (r < 0 && errno == EINTR) continue;
     if (r < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) {
@@ -738,6 +748,9 @@ void CanOpenModuleEmulator::refresh(int j) noexcept {
 }
 
 void CanOpenModuleEmulator::on_sync(std::int64_t now) noexcept {
+  // A new SYNC closes the previous one's synchronous window: its TPDOs still queued are not sent.
+  for (std::size_t i = head_; i != tail_; i = (i + 1) % queue_.size())
+    if (queue_[i].pdo && queue_[i].window_end_ns != 0 && queue_[i].window_end_ns > now) queue_[i].window_end_ns = now;
   ++syncs_;
   bank_.on_sync(static_cast<std::uint8_t>(syncs_), now);
   const Feedback& s = bank_.sample();
@@ -786,11 +799,13 @@ void CanOpenModuleEmulator::on_sync(std::int64_t now) noexcept {
         at += len;
       }
       f.len = static_cast<std::uint8_t>(std::min(at, 8));
-      send(f, now, true);
+      const std::int64_t window_ns = static_cast<std::int64_t>(value_[ju][kE1007]) * 1000;
+      send(f, now, true, window_ns > 0 ? now + window_ns : 0);
     }
   }
   publish();
-  flush(detail::monotonic_ns());
+  // Sent by run() once every frame received so far is handled: a newer SYNC among them closes
+  // this one's window first (a thread held past it must not answer an old SYNC after a new one).
 }
 
 }  // namespace pedalwave::drivers::canopen

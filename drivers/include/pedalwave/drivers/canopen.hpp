@@ -175,6 +175,9 @@ class SdoServer {
 inline constexpr std::uint32_t kAbortNotMappable = 0x06040041;  // object cannot be mapped to the PDO
 inline constexpr std::uint32_t kAbortPdoLength = 0x06040042;    // mapped objects exceed the PDO length
 
+// Communication objects of CiA 301 the master sets at bring-up.
+inline constexpr std::uint16_t kObjCyclePeriod = 0x1006;  // uint32 [µs], the SYNC period
+inline constexpr std::uint16_t kObjSyncWindow = 0x1007;   // uint32 [µs], synchronous window length
 // Manufacturer objects: the CSP position loop's gains (REAL32).
 inline constexpr std::uint16_t kObjCspKp = 0x2010;  // [N·m/rad]
 inline constexpr std::uint16_t kObjCspKd = 0x2011;  // [N·m·s/rad]

@@ -12,7 +12,16 @@
 // fault reset first). An SDO abort is a refusal naming node, joint, object and the abort code.
 //
 // Cycle (Driver contract, allocation- and lock-free): read() sends SYNC, gathers every node's
-// TPDO 1 and TPDO 2 until the deadline (frames queued before the SYNC answer an older one: late);
+// TPDO 1 and TPDO 2 until the deadline. A PDO carries no SYNC counter, so which SYNC a TPDO
+// answers is made certain by the protocol: bring-up sets 1006h (communication cycle period) and
+// 1007h (synchronous window length, CanOpenOptions::sync_window_s, shorter than the period) on
+// every node, and a drive does not send a synchronous PDO outside its window (CiA 301). A TPDO
+// received before this read's SYNC went out (queued after the previous read's deadline) therefore
+// answers the previous SYNC: a late answer. As the own protocol does (late_sample.hpp, PROTOCOL.md
+// §4), a joint without a fresh pair this cycle gets its late pair as an older sample at that
+// SYNC's time (kStatusLate, counted in late_used) — the values are exact, only older — if no
+// newer sample was handed out; a joint with neither is missing.
+//
 // write() sends RPDOs whose controlword is enable operation (0x0F), or disable operation (0x07,
 // the drive's output off) for Command::torque_off; the drives act on them at the next SYNC
 // (FeedbackTiming::kModule: a sample at its SYNC reports the command the previous SYNC put in
@@ -108,6 +117,7 @@ class CanOpenDriver final : public Driver {
   std::uint64_t cycle_ = 0;
   std::int64_t deadline_ns_ = 0;
   std::int64_t sync_wire_ns_ = 0, sync_lower_ns_ = 0;
+  std::int64_t t_sync_ns_ = 0;  // when this read's SYNC was handed to the socket [ns]
   std::array<std::int64_t, 9> frame_wire_ns_{};  // a classic frame of n bytes on the wire [ns]
   std::int64_t wire_busy_ns_ = 0;  // the bus is busy with frames sent / seen until then [ns]
   bool bus_error_cycle_ = false, peer_closed_ = false, bus_off_ = false;
@@ -134,6 +144,20 @@ class CanOpenDriver final : public Driver {
   std::uint64_t written_seq_ = kNoCommandSeq, acting_seq_ = kNoCommandSeq, prev_acting_seq_ = kNoCommandSeq;
   std::int64_t prev_sync_ns_ = 0;  // the previous SYNC's lower bound [ns]
   bool written_ = false;
+  // The SYNC sent by the previous read, for its late answers: its lower bound, and the command its
+  // sample reports applied (seq, when) [ns].
+  struct SyncRecord {
+    std::uint64_t cycle = 0;  // 0: none yet
+    std::int64_t lower_ns = 0;
+    std::uint64_t applied_seq = kNoCommandSeq;
+    std::int64_t applied_ns = 0;
+  };
+  SyncRecord last_sync_{}, prev_sync_{};
+  // Late answers (to prev_sync_) per joint, and the SYNC of the sample handed out last.
+  std::array<bool, kMaxJoints> late1_{}, late2_{};
+  std::array<double, kMaxJoints> late_beta_{}, late_beta_dot_{}, late_defl_{}, late_torque_{};
+  std::array<std::uint16_t, kMaxJoints> late_statusword_{};
+  std::array<std::uint64_t, kMaxJoints> handed_cycle_{};
   // CSP gains by SDO: sent values, the transfer under way.
   canopen::SdoClient sdo_;
   std::array<double, kMaxJoints> sent_kp_{}, sent_kd_{}, want_kp_{}, want_kd_{};

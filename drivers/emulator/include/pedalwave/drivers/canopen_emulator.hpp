@@ -123,6 +123,9 @@ class CanOpenModuleEmulator {
   std::atomic<std::uint64_t> emcy_sent{0};
   std::atomic<std::uint64_t> heartbeats_sent{0};
   std::atomic<std::uint64_t> sdo_served{0};
+  // TPDOs not sent because their synchronous window (1007h) had closed when the drive got to them:
+  // past the window length after their SYNC, or a newer SYNC came first (CiA 301).
+  std::atomic<std::uint64_t> window_dropped{0};
 
  private:
   class NodeDictionary;
@@ -130,12 +133,13 @@ class CanOpenModuleEmulator {
     std::int64_t due_ns = 0;
     can_frame frame{};
     bool pdo = false;  // a TPDO answering a SYNC (counted in replies_sent)
+    std::int64_t window_end_ns = 0;  // not sent after this (its synchronous window); 0: none
   };
   void handle(const can_frame& f, std::int64_t now) noexcept;
   void on_sync(std::int64_t now) noexcept;
   // NMT reset node (whole_node) / reset communication; announce: send the boot-up message.
   void reset(int j, bool whole_node, std::int64_t now, bool announce) noexcept;
-  void send(const can_frame& f, std::int64_t now, bool pdo = false) noexcept;
+  void send(const can_frame& f, std::int64_t now, bool pdo = false, std::int64_t window_end_ns = 0) noexcept;
   void flush(std::int64_t now) noexcept;
   void heartbeats(std::int64_t now) noexcept;
   void refresh(int j) noexcept;                       // live values into the dictionary

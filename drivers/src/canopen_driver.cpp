@@ -15,6 +15,7 @@
 #include <system_error>
 
 #include "pedalwave/drivers/bus_budget.hpp"
+#include "pedalwave/drivers/can_receive.hpp"
 #include "pedalwave/drivers/posix_util.hpp"
 
 namespace pedalwave::drivers {
@@ -408,42 +409,24 @@ void CanOpenDriver::note_fault(int j, const char* fmt, unsigned a, unsigned b, c
 }
 
 void CanOpenDriver::drain(std::int64_t rt_minus_mono_ns, bool before_sync) noexcept {
+  ReceivedFrame r;
   for (;;) {
-    canfd_frame rec{};
-    iovec iov{&rec, sizeof rec};
-    msghdr m{};
-    m.msg_iov = &iov;
-    m.msg_iovlen = 1;
-    m.msg_control = cmsg_buf_.data();
-    m.msg_controllen = cmsg_buf_.size();
-    const ssize_t n = ::recvmsg(fd_, &m, MSG_DONTWAIT);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      return;
-    }
-    if (n == 0) {
+    const Receive got = receive_frame(fd_, cmsg_buf_, rt_minus_mono_ns, r);
+    if (got == Receive::kNone) return;
+    if (got == Receive::kClosed) {
       peer_closed_ = true;
       return;
     }
-    std::int64_t stamp = 0;
-    for (cmsghdr* c = CMSG_FIRSTHDR(&m); c != nullptr; c = CMSG_NXTHDR(&m, c)) {
-      if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMPNS) {
-        timespec ts{};
-        std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-        if (ts.tv_sec != 0 || ts.tv_nsec != 0)
-          stamp = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000LL + ts.tv_nsec - rt_minus_mono_ns;
-      }
-    }
-    if (stamp == 0) stamp = detail::monotonic_ns();
+    const std::int64_t stamp = r.stamp_ns != 0 ? r.stamp_ns : detail::monotonic_ns();
     silence_.on_rx(stamp, counters_);
     if (stamp > wire_busy_ns_) wire_busy_ns_ = stamp;  // the bus was busy up to this frame's end
     ++counters_.frames_rx;
-    if (n != static_cast<ssize_t>(CAN_MTU) || (m.msg_flags & MSG_TRUNC)) {
+    if (r.bytes != CAN_MTU || r.truncated) {
       ++counters_.malformed;
       continue;
     }
     can_frame f{};
-    std::memcpy(&f, &rec, CAN_MTU);
+    std::memcpy(&f, &r.frame, CAN_MTU);
     handle(f, stamp, before_sync);
   }
 }
@@ -551,14 +534,7 @@ void CanOpenDriver::handle(const can_frame& f, std::int64_t stamp, bool before_s
       return;
     }
     got = true;
-    if (t1) {
-      late_statusword_[ju] = u16(f.data);
-      late_beta_[ju] = static_cast<std::int32_t>(u32(f.data + 2)) * rad_per_inc_[ju];
-      late_torque_[ju] = static_cast<std::int16_t>(u16(f.data + 6)) * nm_per_permille_[ju];
-    } else {
-      late_beta_dot_[ju] = static_cast<std::int32_t>(u32(f.data)) * rad_per_inc_[ju];
-      late_defl_[ju] = static_cast<std::int32_t>(u32(f.data + 4)) * defl_rad_per_inc_[ju];
-    }
+    decode_tpdo(t1, f, ju, late_[ju]);
     return;
   }
   // This SYNC's answer; one that came after the deadline (drained in this read's last poll) is
@@ -574,13 +550,20 @@ void CanOpenDriver::handle(const can_frame& f, std::int64_t stamp, bool before_s
     return;
   }
   got = true;
-  if (t1) {
-    statusword_[ju] = u16(f.data);
-    beta_[ju] = static_cast<std::int32_t>(u32(f.data + 2)) * rad_per_inc_[ju];
-    torque_[ju] = static_cast<std::int16_t>(u16(f.data + 6)) * nm_per_permille_[ju];
-  } else {
-    beta_dot_[ju] = static_cast<std::int32_t>(u32(f.data)) * rad_per_inc_[ju];
-    defl_[ju] = static_cast<std::int32_t>(u32(f.data + 4)) * defl_rad_per_inc_[ju];
+  DriveValues v{statusword_[ju], beta_[ju], beta_dot_[ju], defl_[ju], torque_[ju]};
+  decode_tpdo(t1, f, ju, v);
+  statusword_[ju] = v.statusword, beta_[ju] = v.beta, beta_dot_[ju] = v.beta_dot, defl_[ju] = v.defl,
+  torque_[ju] = v.torque;
+}
+
+void CanOpenDriver::decode_tpdo(bool t1, const can_frame& f, std::size_t j, DriveValues& v) const noexcept {
+  if (t1) {  // 6041h statusword, 6064h position actual, 6077h torque actual
+    v.statusword = u16(f.data);
+    v.beta = static_cast<std::int32_t>(u32(f.data + 2)) * rad_per_inc_[j];
+    v.torque = static_cast<std::int16_t>(u16(f.data + 6)) * nm_per_permille_[j];
+  } else {  // 606Ch velocity actual, 6004h deflection
+    v.beta_dot = static_cast<std::int32_t>(u32(f.data)) * rad_per_inc_[j];
+    v.defl = static_cast<std::int32_t>(u32(f.data + 4)) * defl_rad_per_inc_[j];
   }
 }
 
@@ -645,7 +628,7 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
     const bool have = got1_[ju] && got2_[ju];
     const bool have_late = late1_[ju] && late2_[ju] && prev_sync_.cycle != 0;
     const bool use_late = !have && have_late && handed_cycle_[ju] < prev_sync_.cycle;
-    if (use_late) statusword_[ju] = late_statusword_[ju];
+    if (use_late) statusword_[ju] = late_[ju].statusword;
     const cia402::State ds = cia402::decode_statusword(statusword_[ju]);
     if (ds == cia402::State::kFault && !faulted_[ju]) {
       faulted_[ju] = true;
@@ -677,10 +660,10 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
       ++fresh;
       ++counters_.late_used;
       st |= kStatusLate;
-      beta_[ju] = late_beta_[ju];
-      beta_dot_[ju] = late_beta_dot_[ju];
-      defl_[ju] = late_defl_[ju];
-      torque_[ju] = late_torque_[ju];
+      beta_[ju] = late_[ju].beta;
+      beta_dot_[ju] = late_[ju].beta_dot;
+      defl_[ju] = late_[ju].defl;
+      torque_[ju] = late_[ju].torque;
       out.sample_ns[ju] = prev_sync_.lower_ns;
       out.applied_seq[ju] = prev_sync_.applied_seq;
       out.applied_ns[ju] = prev_sync_.applied_ns;

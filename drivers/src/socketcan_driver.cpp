@@ -13,6 +13,7 @@
 #include <system_error>
 
 #include "pedalwave/drivers/bus_budget.hpp"
+#include "pedalwave/drivers/can_receive.hpp"
 #include "pedalwave/drivers/posix_util.hpp"
 
 namespace pedalwave::drivers {
@@ -172,48 +173,26 @@ void SocketCanDriver::note_tx(Tx t, bool& dropped, bool& down) noexcept {
 
 // ---- Receive ------------------------------------------------------------------------------------
 void SocketCanDriver::drain(std::int64_t rt_minus_mono_ns) noexcept {
+  ReceivedFrame r;
   for (;;) {
-    canfd_frame f{};
-    iovec iov{&f, sizeof f};
-    msghdr m{};
-    m.msg_iov = &iov;
-    m.msg_iovlen = 1;
-    m.msg_control = cmsg_buf_.data();
-    m.msg_controllen = cmsg_buf_.size();
-    const ssize_t n = ::recvmsg(fd_, &m, MSG_DONTWAIT);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      return;  // EAGAIN: nothing more; other errors surface as missing frames
-    }
-    if (n == 0) {
+    const Receive got = receive_frame(fd_, cmsg_buf_, rt_minus_mono_ns, r);
+    if (got == Receive::kNone) return;  // nothing more; errors surface as missing frames
+    if (got == Receive::kClosed) {
       peer_closed_ = true;
       return;
     }
-    std::int64_t stamp = 0;
-    for (cmsghdr* c = CMSG_FIRSTHDR(&m); c != nullptr; c = CMSG_NXTHDR(&m, c)) {
-      if (c->cmsg_level != SOL_SOCKET) continue;
-      if (c->cmsg_type == SCM_TIMESTAMPNS) {
-        timespec ts{};
-        std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-        // A zero stamp means "not stamped" (RX timestamping is switched on asynchronously).
-        if (ts.tv_sec != 0 || ts.tv_nsec != 0)
-          stamp = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000LL + ts.tv_nsec -
-                  rt_minus_mono_ns;
-      } else if (c->cmsg_type == SO_RXQ_OVFL) {
-        std::uint32_t drops = 0;
-        std::memcpy(&drops, CMSG_DATA(c), sizeof drops);
-        counters_.rx_dropped += static_cast<std::uint32_t>(drops - rxq_ovfl_);
-        rxq_ovfl_ = drops;
-      }
+    if (r.have_rxq_ovfl) {
+      counters_.rx_dropped += static_cast<std::uint32_t>(r.rxq_ovfl - rxq_ovfl_);
+      rxq_ovfl_ = r.rxq_ovfl;
     }
-    if (stamp == 0) stamp = detail::monotonic_ns();
+    const std::int64_t stamp = r.stamp_ns != 0 ? r.stamp_ns : detail::monotonic_ns();
     silence_.on_rx(stamp, counters_);
-    if (m.msg_flags & MSG_TRUNC) {
+    if (r.truncated) {
       ++counters_.frames_rx;
       ++counters_.malformed;
       continue;
     }
-    handle_frame(f, static_cast<std::size_t>(n), stamp);
+    handle_frame(r.frame, r.bytes, stamp);
   }
 }
 

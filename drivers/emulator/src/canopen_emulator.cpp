@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include "pedalwave/drivers/bus_budget.hpp"
+#include "pedalwave/drivers/can_receive.hpp"
 #include "pedalwave/drivers/posix_util.hpp"
 
 namespace pedalwave::drivers::canopen {
@@ -490,36 +491,22 @@ void CanOpenModuleEmulator::run(const std::atomic<bool>& stop) {
     bank_.on_turn(detail::monotonic_ns());
     bool got = false;
     const std::int64_t rt_off = detail::clock_ns(CLOCK_REALTIME) - detail::monotonic_ns();
+    alignas(cmsghdr) std::array<char, 128> cbuf{};
+    ReceivedFrame r;
     for (;;) {
-      canfd_frame f{};
-      iovec iov{&f, sizeof f};
-      alignas(cmsghdr) std::array<char, 128> cbuf{};
-      msghdr m{};
-      m.msg_iov = &iov;
-      m.msg_iovlen = 1;
-      m.msg_control = cbuf.data();
-      m.msg_controllen = cbuf.size();
-      const ssize_t n = ::recvmsg(fd_, &m, MSG_DONTWAIT);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) break;
+      if (receive_frame(fd_, cbuf, rt_off, r) != Receive::kFrame) break;
       got = true;
       // A drive acts on a frame when it arrives, not when this thread gets to it: the kernel's
       // receive stamp (AF_UNIX: when the host sent it; CAN: when it came off the bus), so a
       // thread held by a loaded machine still samples the plant at the SYNC's time.
       std::int64_t t = detail::monotonic_ns();
-      for (cmsghdr* c = CMSG_FIRSTHDR(&m); c != nullptr; c = CMSG_NXTHDR(&m, c)) {
-        if (c->cmsg_level != SOL_SOCKET || c->cmsg_type != SCM_TIMESTAMPNS) continue;
-        timespec rx{};
-        std::memcpy(&rx, CMSG_DATA(c), sizeof rx);
-        const std::int64_t k = static_cast<std::int64_t>(rx.tv_sec) * 1'000'000'000LL + rx.tv_nsec - rt_off;
-        if ((rx.tv_sec != 0 || rx.tv_nsec != 0) && k < t && k > t - 1'000'000'000LL) t = k;
-      }
-      if (n != static_cast<ssize_t>(CAN_MTU)) {
+      if (r.stamp_ns != 0 && r.stamp_ns < t && r.stamp_ns > t - 1'000'000'000LL) t = r.stamp_ns;
+      if (r.bytes != CAN_MTU) {
         bank_.stats().rx_errors.fetch_add(1, std::memory_order_relaxed);
         continue;
       }
       can_frame c{};
-      std::memcpy(&c, &f, CAN_MTU);
+      std::memcpy(&c, &r.frame, CAN_MTU);
       // The host's frames leave its FIFO transmit queue one after the other; the drives' own
       // frames (ids 080h + node and up) lose arbitration to them, so they do not delay a SYNC or
       // an RPDO beyond the frame already on the wire (not modelled: ≤ one frame time).

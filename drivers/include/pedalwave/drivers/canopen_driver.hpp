@@ -129,6 +129,13 @@ class CanOpenDriver final : public Driver {
   // This cycle per joint.
   std::array<bool, kMaxJoints> got1_{}, got2_{};
   std::array<std::uint16_t, kMaxJoints> status_{};
+  // A drive's TPDO contents in SI units.
+  struct DriveValues {
+    std::uint16_t statusword = 0;
+    double beta = 0, beta_dot = 0, defl = 0, torque = 0;  // [rad], [rad/s], [rad], [N·m]
+  };
+  // TPDO 1 (t1) or TPDO 2 of joint j into v.
+  void decode_tpdo(bool t1, const can_frame& f, std::size_t j, DriveValues& v) const noexcept;
   // Last values per joint.
   std::array<double, kMaxJoints> beta_{}, beta_dot_{}, defl_{}, torque_{};
   std::array<std::uint16_t, kMaxJoints> statusword_{};
@@ -155,8 +162,7 @@ class CanOpenDriver final : public Driver {
   SyncRecord last_sync_{}, prev_sync_{};
   // Late answers (to prev_sync_) per joint, and the SYNC of the sample handed out last.
   std::array<bool, kMaxJoints> late1_{}, late2_{};
-  std::array<double, kMaxJoints> late_beta_{}, late_beta_dot_{}, late_defl_{}, late_torque_{};
-  std::array<std::uint16_t, kMaxJoints> late_statusword_{};
+  std::array<DriveValues, kMaxJoints> late_{};
   std::array<std::uint64_t, kMaxJoints> handed_cycle_{};
   // CSP gains by SDO: sent values, the transfer under way.
   canopen::SdoClient sdo_;

@@ -16,6 +16,8 @@
 #include "pedalwave/mcap/cdr.hpp"
 #include "pedalwave/mcap/cdr_reader.hpp"
 #include "pedalwave/mcap/reader.hpp"
+#include "pedalwave/mcap/ros2_decode.hpp"
+#include "pedalwave/mcap/ros2msg.hpp"
 #include "pedalwave/mcap/writer.hpp"
 
 namespace fs = std::filesystem;
@@ -423,4 +425,63 @@ TEST(CdrReader, BadMessagesAreNamed) {
   // Big-endian encapsulation.
   bytes[1] = std::byte{0x00};
   EXPECT_NE(err(bytes, [](CdrReader&) {}).find("expected 0,1 (CDR_LE"), std::string::npos);
+}
+
+// ---- decoding by the schema the file carries ----------------------------------------------------------
+TEST(Ros2MsgDecoder, DecodesAMessageByItsConcatenatedSchema) {
+  MsgMapLookup defs;
+  defs.add("builtin_interfaces/msg/Time", "int32 sec\nuint32 nanosec\n");
+  defs.add("std_msgs/msg/Header", "builtin_interfaces/Time stamp\nstring frame_id\n");
+  defs.add("pkg/msg/P", "int32 a   # a comment\nstring b\n");
+  defs.add("pkg/msg/S",
+           "# a message\nstd_msgs/Header header\nuint8 K=3\nstring<=4 C=\"x\"\nuint64 seq\nfloat64[<=3] x\n"
+           "string<=15 s\nP[] ps\nint16[2] fixed\nbool flag\nfloat32 f 1.5\n");
+  const std::string schema = concatenate_msg_definitions("pkg/msg/S", defs);
+  const Ros2MsgDecoder dec("pkg/msg/S", schema);
+  CdrWriter w;
+  w.write_time(3'000'000'007);
+  w.write_string("robot");
+  w.write_u64(77);
+  const std::vector<double> x{1.5, -2.25};
+  w.write_sequence(x);
+  w.write_string("RUNNING");
+  w.write_sequence_length(2);
+  w.write_i32(-4); w.write_string("p0");
+  w.write_i32(5); w.write_string("p1");
+  w.write_i16(-1); w.write_i16(2);
+  w.write_bool(true);
+  w.write_f32(0.5f);
+  const DecodedMessage m = dec.decode(w.bytes());
+  EXPECT_EQ(m.scalar("header.stamp.sec"), 3);
+  EXPECT_EQ(m.scalar("header.stamp.nanosec"), 7);
+  EXPECT_EQ(m.strings.at("header.frame_id"), std::vector<std::string>{"robot"});
+  EXPECT_EQ(m.scalar("seq"), 77);
+  EXPECT_EQ(m.at("x"), x);
+  EXPECT_EQ(m.strings.at("s"), std::vector<std::string>{"RUNNING"});
+  EXPECT_EQ(m.at("ps.a"), (std::vector<double>{-4, 5}));
+  EXPECT_EQ(m.strings.at("ps.b"), (std::vector<std::string>{"p0", "p1"}));
+  EXPECT_EQ(m.at("fixed"), (std::vector<double>{-1, 2}));
+  EXPECT_EQ(m.scalar("flag"), 1);
+  EXPECT_EQ(m.scalar("f"), 0.5);
+  EXPECT_EQ(m.numbers.count("K"), 0u);  // constants are no fields
+  // Errors name what is wrong.
+  try {
+    (void)m.at("beta");
+    ADD_FAILURE();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("'beta'"), std::string::npos) << e.what();
+  }
+  const auto cut = w.bytes().first(w.bytes().size() - 6);
+  try {
+    (void)dec.decode(cut);
+    ADD_FAILURE();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("CDR offset"), std::string::npos) << e.what();
+  }
+  try {
+    Ros2MsgDecoder bad("pkg/msg/S", "pkg/Q q\n");
+    ADD_FAILURE();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("pkg/Q"), std::string::npos) << e.what();
+  }
 }

@@ -186,7 +186,8 @@ int main(int argc, char** argv) {
       pedalwave::toolkit::Json K = pedalwave::toolkit::Json::array(), Ks = pedalwave::toolkit::Json::array();
       for (std::size_t i = 0; i < m.K.size(); ++i) K.push(m.K[i]), Ks.push(m.K_se[i]);
       j.set("K", K).set("K_sigma", Ks).set("b", m.b).set("b_sigma", m.b_se).set("I_r", m.I_r).set("I_r_sigma", m.I_r_se)
-          .set("windows", m.windows).set("residual_rms", m.residual_rms);
+          .set("windows", m.windows).set("residual_rms", m.residual_rms)
+          .set("samples", static_cast<double>(rec.t.size())).set("cycles_lost", static_cast<double>(span) - static_cast<double>(rec.t.size()));
       if (!no_ground) {
         if (scene_file.empty()) throw std::invalid_argument("--scene: the recording's scene is needed for the ground fit (or --no-ground)");
         data_campaign.app = datac;

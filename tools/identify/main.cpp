@@ -173,7 +173,7 @@ int main(int argc, char** argv) {
       const long long span = cycle_of(rec, rec.t.size() - 1) - cycle_of(rec, 0) + 1;
       std::cout << "Recording " << rec.source << ": " << rec.joints << " joints, " << rec.t.size() << " samples every "
                 << fmt(sample_period(rec) * 1e3) << " ms over " << fmt(rec.t.back() - rec.t.front()) << " s";
-      if (span > static_cast<long long>(rec.t.size())) std::cout << " (" << span - static_cast<long long>(rec.t.size()) << " cycles lost)";
+      if (span > static_cast<long long>(rec.t.size())) std::cout << " (" << span - static_cast<long long>(rec.t.size()) << " periods without a sample: skipped by the loop or lost)";
       std::cout << "\n";
       pedalwave::toolkit::Table t({"joint", "K [N·m/rad]", "±σ"});
       for (std::size_t j = 0; j < m.K.size(); ++j) t.add_row({std::to_string(j + 1), fmt(m.K[j]), fmt(m.K_se[j], 2)});
@@ -187,7 +187,7 @@ int main(int argc, char** argv) {
       for (std::size_t i = 0; i < m.K.size(); ++i) K.push(m.K[i]), Ks.push(m.K_se[i]);
       j.set("K", K).set("K_sigma", Ks).set("b", m.b).set("b_sigma", m.b_se).set("I_r", m.I_r).set("I_r_sigma", m.I_r_se)
           .set("windows", m.windows).set("residual_rms", m.residual_rms)
-          .set("samples", static_cast<double>(rec.t.size())).set("cycles_lost", static_cast<double>(span) - static_cast<double>(rec.t.size()));
+          .set("samples", static_cast<double>(rec.t.size())).set("periods_missing", static_cast<double>(span) - static_cast<double>(rec.t.size()));
       if (!no_ground) {
         if (scene_file.empty()) throw std::invalid_argument("--scene: the recording's scene is needed for the ground fit (or --no-ground)");
         data_campaign.app = datac;

@@ -3,8 +3,8 @@
 # lockstep simulated plant on flat_high_friction, real-time 1 kHz loop, module PD) for 3 s with its
 # own MCAP recorder (telemetry.record) and the state topics at every cycle (decimation_state: 1),
 # watched by pedalwave_monitor --record run.csv (the CSV recorder's run.<topic>.csv). Then
-#   pedalwave_identify data --recording daemon.mcap --no-ground --json mcap.json
-#   pedalwave_identify data --recording run.csv     --no-ground --json csv.json
+#   pedalwave_identify data --recording daemon.mcap --no-ground --window 0.02 --json mcap.json
+#   pedalwave_identify data --recording run.csv     --no-ground --window 0.02 --json csv.json
 # must agree: to 1e-9 (relative) when the two recordings hold the same cycles (the usual case: both
 # readers take every sample), else within the fits' standard errors (the monitor's best-effort
 # reader in another process lost some). And both must find the scene's motor: K = 3 N·m/rad per
@@ -52,8 +52,8 @@ mon_pid=""
 grep -E "^recording|overruns" daemon.log || true
 tail -1 monitor.log
 
-"$identify" data --recording daemon.mcap --no-ground --json mcap.json | tee identify_mcap.log
-"$identify" data --recording run.csv --no-ground --json csv.json | tee identify_csv.log
+"$identify" data --recording daemon.mcap --no-ground --window 0.02 --json mcap.json | tee identify_mcap.log
+"$identify" data --recording run.csv --no-ground --window 0.02 --json csv.json | tee identify_csv.log
 
 /usr/bin/python3 - mcap.json csv.json <<'EOF'
 import json, sys
@@ -84,7 +84,7 @@ for f in (m, c):
         if abs(K - 3.0) > 0.03: bad.append(f"K_{j + 1} = {K} (scene 3)")
     if abs(f["I_r"] - 5e-8) > 0.01 * 5e-8 + 2 / 255 * 5e-8: bad.append(f"I_r = {f['I_r']} (scene 5e-8)")
     if abs(f["b"] - 0.0075) > 0.05 * 0.0075: bad.append(f"b = {f['b']} (K_p h_s / 2 = 0.0075)")
-    if f["windows"] < 40: bad.append(f"only {f['windows']} windows")
+    if f["windows"] < 20: bad.append(f"only {f['windows']} windows")
 if bad:
     print("FAILED: " + "; ".join(bad))
     sys.exit(1)

@@ -105,7 +105,8 @@ int main(int argc, char** argv) {
                     "pedalwave_sim's trajectory.csv sampled every control period")
       ->required();
   datac->add_option("--scene", scene_file, "the recording's scene (gait, start, robot): needed for the ground fit");
-  datac->add_option("--n", mo.n, "gear ratio")->check(cli::finite_positive())->capture_default_str();
+  auto* n_opt = datac->add_option("--n", mo.n, "gear ratio (default: the recording's robot_description, else 255)")
+                    ->check(cli::finite_positive())->capture_default_str();
   datac->add_option("--pd", pd, "where the PD runs: module (within the period) or host (u held)")
       ->check(CLI::IsMember({"module", "host"}))->capture_default_str();
   datac->add_option("--kp", mo.K_p, "PD K_p [N·m/rad]")->capture_default_str();
@@ -169,12 +170,19 @@ int main(int argc, char** argv) {
     } else {
       mo.module_pd = pd == "module";
       const Recording rec = read_recording(recording);
+      if (n_opt->count() == 0 && rec.gear_ratio > 0) mo.n = rec.gear_ratio;
       const MotorFit m = fit_motor(rec, mo);
       const long long span = cycle_of(rec, rec.t.size() - 1) - cycle_of(rec, 0) + 1;
       std::cout << "Recording " << rec.source << ": " << rec.joints << " joints, " << rec.t.size() << " samples every "
                 << fmt(sample_period(rec) * 1e3) << " ms over " << fmt(rec.t.back() - rec.t.front()) << " s";
       if (span > static_cast<long long>(rec.t.size())) std::cout << " (" << span - static_cast<long long>(rec.t.size()) << " periods without a sample: skipped by the loop or lost)";
       std::cout << "\n";
+      if (rec.gear_ratio > 0) {
+        std::cout << "The robot's description in the recording: gear ratio n = " << fmt(rec.gear_ratio)
+                  << (n_opt->count() == 0 ? " (used)" : " (--n " + fmt(mo.n) + " used)") << ", configured K =";
+        for (double k : rec.nominal_K) std::cout << ' ' << fmt(k);
+        std::cout << " N·m/rad, I_r = " << fmt(rec.nominal_I_r) << " kg·m²\n";
+      }
       pedalwave::toolkit::Table t({"joint", "K [N·m/rad]", "±σ"});
       for (std::size_t j = 0; j < m.K.size(); ++j) t.add_row({std::to_string(j + 1), fmt(m.K[j]), fmt(m.K_se[j], 2)});
       std::cout << "Stage 1, equation error (" << m.windows << " windows of " << mo.window << " s, " << m.rows

@@ -42,6 +42,10 @@ struct Recording {
   // The samples' cycle numbers (the robot's seq) when cycles are missing (a telemetry recording
   // that lost samples): t_k = t_0 + h (cycle_k − cycle_0). Empty: one sample every period.
   std::vector<long long> cycle;
+  // What the robot's description (<ns>/pedalwave/robot_description) says, when the recording has
+  // it: the gear ratio n and the configured K_j and I_r; 0 / empty = not recorded.
+  double gear_ratio = 0, nominal_I_r = 0;
+  std::vector<double> nominal_K;
   std::string source;
 };
 

@@ -142,6 +142,23 @@ Recording read_recording_mcap(const fs::path& file) {
   };
   const mcap::Ros2MsgDecoder jd = decoder(jc, "pedalwave/msg/JointState");
   const mcap::Ros2MsgDecoder cd = decoder(*cc, "pedalwave/msg/ControllerState");
+  // The robot's description (transient-local: recorded once at the start), when present.
+  double gear_ratio = 0, nominal_I_r = 0;
+  std::vector<double> nominal_K;
+  if (const mcap::ChannelRecord* dc = reader.channel(ns + "/pedalwave/robot_description")) {
+    const mcap::Ros2MsgDecoder dd = decoder(*dc, "pedalwave/msg/RobotDescription");
+    const std::vector<mcap::ChannelId> id{dc->id};
+    for (const mcap::ReadMessage& m : reader.messages(id)) {
+      try {
+        const mcap::DecodedMessage d = dd.decode(m.data);
+        gear_ratio = d.scalar("gear_ratio");
+        nominal_I_r = d.scalar("rotor_inertia");
+        nominal_K = d.at("spring_stiffness");
+      } catch (const std::runtime_error& e) {
+        throw std::runtime_error(name + ": byte " + std::to_string(m.offset) + ": " + dc->topic + ": " + e.what());
+      }
+    }
+  }
   const std::vector<mcap::ChannelId> ids{jc.id, cc->id};
   std::vector<JointRow> joints;
   std::vector<ControllerRow> controller;
@@ -161,7 +178,11 @@ Recording read_recording_mcap(const fs::path& file) {
                                " message " + std::to_string(m.sequence) + ": " + e.what());
     }
   }
-  return join_telemetry(joints, controller, name);
+  Recording r = join_telemetry(joints, controller, name);
+  r.gear_ratio = gear_ratio;
+  r.nominal_I_r = nominal_I_r;
+  r.nominal_K = nominal_K;
+  return r;
 }
 
 // ---- the CSV recorder's files -------------------------------------------------------------------------
@@ -266,7 +287,21 @@ Recording read_recorder_csv(const fs::path& joint_state_csv, const fs::path& con
                       js.joints(k, "beta_dot", nj), js.joints(k, "alpha", nj)});
   for (std::size_t k = 0; k < cs.rows(); ++k)
     controller.push_back({cs.integer(k, "seq"), cs.integer(k, "stamp_ns"), cs.number(k, "mode"), cs.joints(k, "u", nc)});
-  return join_telemetry(joints, controller, joint_state_csv.string() + " + " + controller_state_csv.filename().string());
+  Recording r = join_telemetry(joints, controller, joint_state_csv.string() + " + " + controller_state_csv.filename().string());
+  // The robot's description beside them (run.robot_description.csv), when recorded.
+  const std::string js_name = joint_state_csv.string();
+  const fs::path desc = js_name.substr(0, js_name.size() - std::string_view(".joint_state.csv").size()) +
+                        ".robot_description.csv";
+  if (ends_with(js_name, ".joint_state.csv") && fs::exists(desc) && fs::file_size(desc) > 0) {
+    const RecorderCsv d(desc);
+    if (d.rows() > 0 && d.has("gear_ratio") && d.has("rotor_inertia")) {
+      const std::size_t last = d.rows() - 1;
+      r.gear_ratio = d.number(last, "gear_ratio");
+      r.nominal_I_r = d.number(last, "rotor_inertia");
+      r.nominal_K = d.joints(last, "spring_stiffness", d.count("spring_stiffness"));
+    }
+  }
+  return r;
 }
 
 // ---- any of them -------------------------------------------------------------------------------------

@@ -360,6 +360,19 @@ void write_telemetry_mcap(const Recording& r, const fs::path& file, const std::s
                             mcap::concatenate_msg_definitions("pedalwave/msg/ControllerState", msgs), qos);
   mcap::CdrWriter cdr;
   const auto J = static_cast<std::size_t>(r.joints);
+  {  // The robot's description (gear ratio 200, K_j = 3 + j/10, I_r 6e-8), recorded first.
+    const auto ds = w.add_ros2_channel("/demo/pedalwave/robot_description", "pedalwave/msg/RobotDescription",
+                                       mcap::concatenate_msg_definitions("pedalwave/msg/RobotDescription", msgs), qos);
+    cdr.reset();
+    cdr.write_i32(r.joints + 1);
+    for (double v : {0.07, 0.1, 0.02, 6e-8, 200.0}) cdr.write_f64(v);
+    std::vector<double> K(J);
+    for (std::size_t j = 0; j < J; ++j) K[j] = 3 + 0.1 * static_cast<double>(j);
+    cdr.write_sequence(K);
+    for (double v : {1000.0, 1000.0, 1000.0, 1000.0, 100.0}) cdr.write_f64(v);
+    for (const char* t : {"demo", "/demo", "sim"}) cdr.write_string(t);
+    w.write(ds, 1, cdr.bytes());
+  }
   auto column = [&](const std::vector<std::vector<double>>& v, std::size_t k) {
     std::vector<double> out(J);
     for (std::size_t j = 0; j < J; ++j) out[j] = v[j][k];
@@ -428,6 +441,10 @@ TEST(IdentifyMcap, RecordingJoinsToTheSameTableAndFit) {
   EXPECT_EQ(r.beta_dot, sim.beta_dot);
   EXPECT_EQ(r.alpha, sim.alpha);
   EXPECT_EQ(r.u, sim.u);
+  EXPECT_EQ(r.gear_ratio, 200.0);  // the description's
+  EXPECT_EQ(r.nominal_I_r, 6e-8);
+  ASSERT_EQ(r.nominal_K.size(), static_cast<std::size_t>(r.joints));
+  for (std::size_t j = 0; j < r.nominal_K.size(); ++j) EXPECT_EQ(r.nominal_K[j], 3 + 0.1 * static_cast<double>(j));
   const MotorFit a = fit_motor(sim, MotorFitOptions{}), b = fit_motor(r, MotorFitOptions{});
   EXPECT_EQ(a.K, b.K);
   EXPECT_EQ(a.b, b.b);

@@ -485,3 +485,40 @@ TEST(Ros2MsgDecoder, DecodesAMessageByItsConcatenatedSchema) {
     EXPECT_NE(std::string(e.what()).find("pkg/Q"), std::string::npos) << e.what();
   }
 }
+
+// What a recorder that died leaves (the file cut anywhere after the Header): with allow_unfinished
+// the messages of the whole records before the cut, in order — for our writer's files, those of the
+// completed chunks — and complete() false; the whole file complete() true.
+TEST(McapReader, UnfinishedFileGivesTheMessagesOfItsWholeChunks) {
+  const fs::path p = temp_file("unfinished.mcap");
+  write_file(p, Compression::zstd, true, 90);
+  const auto good = bytes_of(p);
+  const ReaderOptions o{.allow_unfinished = true};
+  const Reader whole(good, "whole.mcap", o);
+  EXPECT_TRUE(whole.complete());
+  const auto all = whole.messages();
+  const auto rs = test::split_records(good, 8, good.size() - 8);
+  std::size_t header_end = 0;
+  for (const auto& r : rs.list)
+    if (r.op == 0x01) header_end = static_cast<std::size_t>(r.offset + r.size);
+  std::size_t previous = 0;
+  for (std::size_t n = header_end; n < good.size(); n += 7) {
+    const Reader cut(std::vector<std::byte>(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(n)), "cut.mcap", o);
+    EXPECT_FALSE(cut.complete()) << n;
+    // Messages of the chunks that end at or before n.
+    std::uint64_t expect = 0;
+    for (const auto& r : rs.list)
+      if (r.op == 0x06 && r.offset + r.size <= n) {
+        const test::Chunk k = test::decode_chunk(r.body);
+        const auto inner = test::split_records(k.records, 0, k.records.size());
+        for (const auto& m : inner.list) expect += m.op == 0x05 ? 1 : 0;
+      }
+    ASSERT_EQ(cut.message_count(), expect) << "cut at " << n;
+    ASSERT_GE(cut.message_count(), previous);
+    previous = cut.message_count();
+  }
+  EXPECT_GT(previous, 0u);
+  // Cut inside the Header: still an error.
+  EXPECT_NE(error_of([&] { Reader(std::vector<std::byte>(good.begin(), good.begin() + 12), "h.mcap", o); }).find("h.mcap: byte 8"),
+            std::string::npos);
+}

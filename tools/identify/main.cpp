@@ -170,6 +170,7 @@ int main(int argc, char** argv) {
     } else {
       mo.module_pd = pd == "module";
       const Recording rec = read_recording(recording);
+      for (const std::string& note : rec.notes) std::cerr << "pedalwave_identify: note: " << note << '\n';
       if (n_opt->count() == 0 && rec.gear_ratio > 0) mo.n = rec.gear_ratio;
       const MotorFit m = fit_motor(rec, mo);
       const long long span = cycle_of(rec, rec.t.size() - 1) - cycle_of(rec, 0) + 1;

@@ -47,6 +47,7 @@ struct Recording {
   double gear_ratio = 0, nominal_I_r = 0;
   std::vector<double> nominal_K;
   std::string source;
+  std::vector<std::string> notes;  // what the reader wants the user to know (an unfinished file)
 };
 
 // The control period h [s] (from the first and last samples and their cycles) and sample k's cycle

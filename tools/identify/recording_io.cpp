@@ -106,7 +106,8 @@ Recording join_telemetry(const std::vector<JointRow>& joints, const std::vector<
 
 // ---- MCAP ---------------------------------------------------------------------------------------------
 Recording read_recording_mcap(const fs::path& file) {
-  const mcap::Reader reader(file);
+  // A recording whose recorder died (no summary): its completed chunks are read, and said so.
+  const mcap::Reader reader(file, mcap::ReaderOptions{.allow_unfinished = true});
   const std::string name = file.string();
   // The robot: the channel of <ns>/pedalwave/joint_state.
   std::vector<const mcap::ChannelRecord*> joint_channels;
@@ -182,6 +183,9 @@ Recording read_recording_mcap(const fs::path& file) {
   r.gear_ratio = gear_ratio;
   r.nominal_I_r = nominal_I_r;
   r.nominal_K = nominal_K;
+  if (!reader.complete())
+    r.notes.push_back(name + " ends without its summary and footer (the recorder did not close it): "
+                             "read the " + std::to_string(reader.chunk_count()) + " whole chunk(s) before the end");
   return r;
 }
 

@@ -450,6 +450,17 @@ TEST(IdentifyMcap, RecordingJoinsToTheSameTableAndFit) {
   EXPECT_EQ(a.b, b.b);
   EXPECT_EQ(a.I_r, b.I_r);
 
+  // The recorder died: the file cut at 60 % (no summary, no footer) reads up to its last whole
+  // chunk, says so, and its table is the walk's beginning.
+  fs::copy_file(d / "walk.mcap", d / "died.mcap");
+  fs::resize_file(d / "died.mcap", fs::file_size(d / "walk.mcap") * 6 / 10);
+  const Recording died = read_recording(d / "died.mcap");
+  ASSERT_EQ(died.notes.size(), 1u);
+  EXPECT_NE(died.notes[0].find("ends without its summary"), std::string::npos) << died.notes[0];
+  ASSERT_GT(died.t.size(), sim.t.size() / 3);
+  ASSERT_LT(died.t.size(), sim.t.size());
+  for (std::size_t k = 0; k < died.t.size(); ++k) ASSERT_EQ(died.beta[1][k], sim.beta[1][k]) << k;
+
   // Lost cycles: joint_state 100 and 1033, controller_state 1500.
   write_telemetry_mcap(sim, d / "lossy.mcap", {100, 1033}, {1500});
   const Recording l = read_recording(d / "lossy.mcap");

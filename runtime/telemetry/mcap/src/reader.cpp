@@ -190,6 +190,7 @@ class Pass {
   std::uint64_t messages = 0;
   std::uint32_t chunks = 0;
   bool summary = false;
+  bool unfinished = false;  // ended early, read up to there (ReaderOptions::allow_unfinished)
   std::function<void(const ReadMessage&, std::span<const std::byte>)> on_message;  // data separately
 
   void run() {
@@ -205,9 +206,18 @@ class Pass {
     bool data_end = false;
     std::uint64_t summary_start = 0;
     for (;;) {
-      if (pos == file_.size())
+      if (pos == file_.size()) {
+        if (o_.allow_unfinished && !first) {
+          unfinished = true;
+          return;
+        }
         top.fail(pos, "the file ends without a Footer record and the closing magic (an unfinished "
                       "recording? `mcap recover` rewrites one): expected a Footer");
+      }
+      if (o_.allow_unfinished && !first && !record_fits(pos)) {  // cut inside its last record
+        unfinished = true;
+        return;
+      }
       const RecordView r = next_record(file_, pos, top, "the end of the file");
       if (first && r.op != kHeader)
         top.fail(r.at, std::string(op_name(r.op)) + " record first: expected the Header record (opcode 0x01)");
@@ -238,6 +248,11 @@ class Pass {
                                            ", the Footer says " + hex32(crc));
           }
           const std::uint64_t end = r.body_at + r.body.size();
+          if (o_.allow_unfinished && file_.size() - end < kMagic.size() &&
+              std::memcmp(file_.data() + end, kMagic.data(), static_cast<std::size_t>(file_.size() - end)) == 0) {
+            unfinished = true;  // cut inside the closing magic
+            return;
+          }
           if (file_.size() - end < kMagic.size())
             top.fail(end, "the file ends " + std::to_string(file_.size() - end) +
                               " byte(s) after the Footer: expected " + std::string(kMagicText));
@@ -278,6 +293,16 @@ class Pass {
   }
 
  private:
+  // Whether a whole record starts at `pos` (its opcode, length and body inside the file).
+  [[nodiscard]] bool record_fits(std::uint64_t pos) const {
+    const std::uint64_t left = file_.size() - pos;
+    if (left < 9) return false;
+    std::uint64_t len = 0;
+    for (std::size_t i = 0; i < 8; ++i)
+      len |= static_cast<std::uint64_t>(std::to_integer<unsigned>(file_[static_cast<std::size_t>(pos + 1 + i)])) << (8 * i);
+    return len <= left - 9;
+  }
+
   void schema(Fields& f, const Place& place) {
     const std::uint64_t at = f.at();
     SchemaRecord s;
@@ -472,6 +497,7 @@ void Reader::scan_checked() {
   message_count_ = p.messages;
   chunk_count_ = p.chunks;
   has_summary_ = p.summary;
+  complete_ = !p.unfinished;
 }
 
 void Reader::scan(Sink* sink) const {

@@ -19,8 +19,9 @@
 //   run.mcap: byte 4711: Chunk compression "brotli": expected "zstd", "lz4" or "" (none)
 //   run.mcap: byte 4711: Chunk CRC mismatch: the records decompress to CRC 0x1234abcd, the chunk says 0xdeadbeef
 //   run.mcap: byte 5000 (in the Chunk at byte 4711, uncompressed offset 88): Channel 3 ("/a") refers to schema 7: no such Schema record before it
-// A file that ends early (a recording whose writer died: no summary, no footer) is an error too;
-// `mcap recover` (the official CLI) rewrites such a file.
+// A file that ends early (a recording whose writer died: no summary, no footer) is an error too,
+// unless ReaderOptions::allow_unfinished: then the messages of its whole records (every completed
+// chunk) are read and complete() says false. (`mcap recover`, the official CLI, rewrites such a file.)
 //
 // Not for the real-time cycle: it allocates and does file I/O.
 #pragma once
@@ -80,6 +81,10 @@ struct ReadMessage {
 struct ReaderOptions {
   bool check_crcs = true;                          // chunk, data-section and summary CRCs
   std::uint64_t max_chunk_size = 1ull << 32;       // [bytes] uncompressed: refuse more (a corrupt size)
+  // A file that ends early — at a record's end or inside its last record, after the Header (what a
+  // recorder that died leaves) — is read up to its last whole record instead of refused; complete()
+  // then says false. Damage anywhere else is still an error.
+  bool allow_unfinished = false;
 };
 
 class Reader {
@@ -100,6 +105,8 @@ class Reader {
   [[nodiscard]] std::uint64_t message_count() const noexcept { return message_count_; }  // all channels
   [[nodiscard]] std::uint32_t chunk_count() const noexcept { return chunk_count_; }
   [[nodiscard]] bool has_summary() const noexcept { return has_summary_; }
+  // False when the file ended early and ReaderOptions::allow_unfinished read what was there.
+  [[nodiscard]] bool complete() const noexcept { return complete_; }
   [[nodiscard]] const std::string& name() const noexcept { return name_; }
 
   // The messages on `channels` (all channels when empty), in log-time order (stable). Rescans the
@@ -124,6 +131,7 @@ class Reader {
   std::uint64_t message_count_ = 0;
   std::uint32_t chunk_count_ = 0;
   bool has_summary_ = false;
+  bool complete_ = true;
 };
 
 // True when the file starts with the MCAP magic (false for a shorter or unreadable file).

@@ -478,6 +478,17 @@ TEST(Ros2MsgDecoder, DecodesAMessageByItsConcatenatedSchema) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("CDR offset"), std::string::npos) << e.what();
   }
+  // A sequence of messages claiming 4e9 elements: refused at once (no loop over them).
+  const Ros2MsgDecoder seq("pkg/msg/S2", std::string("pkg/P[] ps\n") + std::string(80, '=') + "\nMSG: pkg/P\nint32 a\n");
+  // Encapsulation CDR_LE, then the count 4e9 = 0xEE6B2800 little-endian.
+  const std::vector<std::byte> huge{std::byte{0}, std::byte{1}, std::byte{0}, std::byte{0},
+                                    std::byte{0x00}, std::byte{0x28}, std::byte{0x6B}, std::byte{0xEE}};
+  try {
+    (void)seq.decode(huge);
+    ADD_FAILURE();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("sequence of 4000000000 elements"), std::string::npos) << e.what();
+  }
   try {
     Ros2MsgDecoder bad("pkg/msg/S", "pkg/Q q\n");
     ADD_FAILURE();

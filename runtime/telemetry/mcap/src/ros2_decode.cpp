@@ -49,7 +49,7 @@ void decode_into(const std::map<std::string, std::vector<Ros2MsgDecoder::Field>>
       } else if (f.type == "string") {
         min_size = 5;
       } else {
-        min_size = 0;  // a message may be empty
+        min_size = 1;  // a message is at least one byte (ROS 2 gives an empty one a uint8 member)
       }
       n = cdr.read_sequence_length(name.c_str(), min_size, f.count == 0 ? static_cast<std::size_t>(-1) : f.count);
     }

@@ -5,7 +5,7 @@
 //       paper's simulated figures, config/identify/), NLopt (quasi-random starts as one batch,
 //       then LN_BOBYQA), every evaluation's simulations as a campaign (--backend local|slurm),
 //       cached; reports residuals, sensitivities, determinacy; writes DIR/fit.json.
-//   pedalwave_identify data RECORDING.csv --scene S.yaml [--no-ground] …
+//   pedalwave_identify data [--recording] RECORDING(.mcap|.csv) --scene S.yaml [--no-ground] …
 //       K per joint, motor friction and I_r by equation error (the motor rows, integrated over
 //       windows), then the ground's μ by output error (closed-loop re-simulation).
 //   pedalwave_identify campaign-worker --dir D --task I     (the Slurm array tasks' entry)
@@ -99,9 +99,14 @@ int main(int argc, char** argv) {
   std::string pd = "module";
   bool no_ground = false;
   campaign::cli::CliOptions data_campaign;
-  datac->add_option("recording", recording, "pedalwave_sim trajectory.csv sampled every control period")->required();
+  datac->add_option("recording,--recording", recording,
+                    "the recording: an MCAP file (the daemon's telemetry.record or pedalwave_monitor --record "
+                    "run.mcap), the CSV recorder's run.csv (run.joint_state.csv + run.controller_state.csv), or "
+                    "pedalwave_sim's trajectory.csv sampled every control period")
+      ->required();
   datac->add_option("--scene", scene_file, "the recording's scene (gait, start, robot): needed for the ground fit");
-  datac->add_option("--n", mo.n, "gear ratio")->check(cli::finite_positive())->capture_default_str();
+  auto* n_opt = datac->add_option("--n", mo.n, "gear ratio (default: the recording's robot_description, else 255)")
+                    ->check(cli::finite_positive())->capture_default_str();
   datac->add_option("--pd", pd, "where the PD runs: module (within the period) or host (u held)")
       ->check(CLI::IsMember({"module", "host"}))->capture_default_str();
   datac->add_option("--kp", mo.K_p, "PD K_p [N·m/rad]")->capture_default_str();
@@ -164,8 +169,21 @@ int main(int argc, char** argv) {
       }
     } else {
       mo.module_pd = pd == "module";
-      const Recording rec = read_recording_csv(recording);
+      const Recording rec = read_recording(recording);
+      for (const std::string& note : rec.notes) std::cerr << "pedalwave_identify: note: " << note << '\n';
+      if (n_opt->count() == 0 && rec.gear_ratio > 0) mo.n = rec.gear_ratio;
       const MotorFit m = fit_motor(rec, mo);
+      const long long span = cycle_of(rec, rec.t.size() - 1) - cycle_of(rec, 0) + 1;
+      std::cout << "Recording " << rec.source << ": " << rec.joints << " joints, " << rec.t.size() << " samples every "
+                << fmt(sample_period(rec) * 1e3) << " ms over " << fmt(rec.t.back() - rec.t.front()) << " s";
+      if (span > static_cast<long long>(rec.t.size())) std::cout << " (" << span - static_cast<long long>(rec.t.size()) << " periods without a sample: skipped by the loop or lost)";
+      std::cout << "\n";
+      if (rec.gear_ratio > 0) {
+        std::cout << "The robot's description in the recording: gear ratio n = " << fmt(rec.gear_ratio)
+                  << (n_opt->count() == 0 ? " (used)" : " (--n " + fmt(mo.n) + " used)") << ", configured K =";
+        for (double k : rec.nominal_K) std::cout << ' ' << fmt(k);
+        std::cout << " N·m/rad, I_r = " << fmt(rec.nominal_I_r) << " kg·m²\n";
+      }
       pedalwave::toolkit::Table t({"joint", "K [N·m/rad]", "±σ"});
       for (std::size_t j = 0; j < m.K.size(); ++j) t.add_row({std::to_string(j + 1), fmt(m.K[j]), fmt(m.K_se[j], 2)});
       std::cout << "Stage 1, equation error (" << m.windows << " windows of " << mo.window << " s, " << m.rows
@@ -177,7 +195,8 @@ int main(int argc, char** argv) {
       pedalwave::toolkit::Json K = pedalwave::toolkit::Json::array(), Ks = pedalwave::toolkit::Json::array();
       for (std::size_t i = 0; i < m.K.size(); ++i) K.push(m.K[i]), Ks.push(m.K_se[i]);
       j.set("K", K).set("K_sigma", Ks).set("b", m.b).set("b_sigma", m.b_se).set("I_r", m.I_r).set("I_r_sigma", m.I_r_se)
-          .set("windows", m.windows).set("residual_rms", m.residual_rms);
+          .set("windows", m.windows).set("residual_rms", m.residual_rms)
+          .set("samples", static_cast<double>(rec.t.size())).set("periods_missing", static_cast<double>(span) - static_cast<double>(rec.t.size()));
       if (!no_ground) {
         if (scene_file.empty()) throw std::invalid_argument("--scene: the recording's scene is needed for the ground fit (or --no-ground)");
         data_campaign.app = datac;

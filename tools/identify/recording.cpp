@@ -87,11 +87,21 @@ void write_recording_csv(const Recording& r, const fs::path& file) {
   w.close();
 }
 
+double sample_period(const Recording& r) {
+  if (r.t.size() < 2) throw std::invalid_argument("recording " + r.source + ": fewer than 2 samples");
+  return (r.t.back() - r.t.front()) / static_cast<double>(cycle_of(r, r.t.size() - 1) - cycle_of(r, 0));
+}
+
+long long cycle_of(const Recording& r, std::size_t k) {
+  return r.cycle.empty() ? static_cast<long long>(k) : r.cycle[k];
+}
+
 MotorFit fit_motor(const Recording& r, const MotorFitOptions& o) {
   const int J = r.joints;
-  const double h = r.t[1] - r.t[0];
+  const double h = sample_period(r);
   const auto per = static_cast<std::size_t>(std::max<long>(1, std::lround(o.window / h)));
-  std::size_t first = static_cast<std::size_t>(std::lround(o.skip / h));
+  std::size_t first = 0;
+  while (first < r.t.size() && r.t[first] - r.t.front() < o.skip - 0.5 * h) ++first;
   MotorFit f;
   f.theta_term = !r.theta_N_dot.empty() && static_cast<int>(r.alpha_dot.size()) == J;
   // θ̇_j = θ̇_N + Σ_{k≥j} α̇_k (model-spec.md §1).
@@ -106,7 +116,17 @@ MotorFit fit_motor(const Recording& r, const MotorFitOptions& o) {
       }
     }
   }
-  const std::size_t windows = first + per < r.t.size() ? (r.t.size() - 1 - first) / per : 0;
+  // Windows of `per` consecutive cycles (a lost sample ends a run of them).
+  std::vector<std::size_t> starts;
+  for (std::size_t a = first; a + per < r.t.size();) {
+    if (cycle_of(r, a + per) - cycle_of(r, a) == static_cast<long long>(per)) {
+      starts.push_back(a);
+      a += per;
+    } else {
+      ++a;
+    }
+  }
+  const std::size_t windows = starts.size();
   if (windows < 4) throw std::invalid_argument("recording " + r.source + ": too short for windows of " + std::to_string(o.window) + " s");
   const auto rows = static_cast<Eigen::Index>(windows * static_cast<std::size_t>(J));
   const Eigen::Index P = J + 2;  // K_1 … K_J, b, I_r
@@ -116,7 +136,7 @@ MotorFit fit_motor(const Recording& r, const MotorFitOptions& o) {
   const double s_ir = o.n * o.n;
   Eigen::Index row = 0;
   for (std::size_t w = 0; w < windows; ++w) {
-    const std::size_t a = first + w * per, b = a + per;
+    const std::size_t a = starts[w], b = a + per;
     for (int j = 0; j < J; ++j) {
       const auto& al = r.alpha[static_cast<std::size_t>(j)];
       const auto& be = r.beta[static_cast<std::size_t>(j)];
@@ -133,7 +153,8 @@ MotorFit fit_motor(const Recording& r, const MotorFitOptions& o) {
         if (o.module_pd)
           uk -= o.K_p * (0.5 * h * (be[k] + be[k + 1]) - be[k] * h) + o.K_D * ((be[k + 1] - be[k]) - bd[k] * h);
         iu += uk;
-      }      double ir = s_ir * (bd[b] - bd[a]);
+      }
+      double ir = s_ir * (bd[b] - bd[a]);
       if (f.theta_term) ir -= o.n * (theta_dot[static_cast<std::size_t>(j)][b] - theta_dot[static_cast<std::size_t>(j)][a]);
       A(row, j) = idef;
       A(row, J) = be[b] - be[a];
@@ -177,7 +198,7 @@ const Recording& cached_recording(const std::string& path) {
   static std::map<std::string, Recording> cache;
   std::lock_guard<std::mutex> lock(mu);
   auto it = cache.find(path);
-  if (it == cache.end()) it = cache.emplace(path, read_recording_csv(path)).first;
+  if (it == cache.end()) it = cache.emplace(path, read_recording(path)).first;
   return it->second;
 }
 
@@ -213,8 +234,9 @@ std::string ground_run_line(const std::string& line) {
   long long n = 0;
   int status = 0;
   for (std::size_t k = 0; k < r.t.size(); ++k) {
-    if (k > 0) {
-      const model::StepStatus st = loop.step();
+    if (k > 0) {  // one step a cycle; compared where the recording has the cycle
+      model::StepStatus st = model::StepStatus::kOk;
+      for (long long c = cycle_of(r, k - 1); c < cycle_of(r, k) && st == model::StepStatus::kOk; ++c) st = loop.step();
       if (st != model::StepStatus::kOk) { status = static_cast<int>(st); break; }
     }
     const Eigen::VectorXd& q = loop.sim().q();
@@ -250,7 +272,7 @@ double ground_objective(unsigned, const double* x, double*, void* d) {
 GroundFit fit_ground_mu(const fs::path& recording, const std::string& scene_yaml, const MotorFit& motor,
                         const GroundFitOptions& o) {
   const Recording& r = cached_recording(recording.string());
-  const double rate = o.rate_hz > 0 ? o.rate_hz : 1.0 / (r.t[1] - r.t[0]);
+  const double rate = o.rate_hz > 0 ? o.rate_hz : 1.0 / sample_period(r);
   GroundFit g;
   std::map<std::string, std::pair<double, long long>> cache;
   int batch = 0;

@@ -39,8 +39,49 @@ struct Recording {
   // of the motor rows' 1/n term; empty = not recorded.
   std::vector<std::vector<double>> alpha_dot;             // [rad/s]
   std::vector<double> theta_N_dot;                        // [rad/s]
+  // The samples' cycle numbers (the robot's seq) when cycles are missing (a telemetry recording
+  // that lost samples): t_k = t_0 + h (cycle_k − cycle_0). Empty: one sample every period.
+  std::vector<long long> cycle;
+  // What the robot's description (<ns>/pedalwave/robot_description) says, when the recording has
+  // it: the gear ratio n and the configured K_j and I_r; 0 / empty = not recorded.
+  double gear_ratio = 0, nominal_I_r = 0;
+  std::vector<double> nominal_K;
   std::string source;
+  std::vector<std::string> notes;  // what the reader wants the user to know (an unfinished file)
 };
+
+// The control period h [s] (from the first and last samples and their cycles) and sample k's cycle
+// (k when the recording has no gaps).
+double sample_period(const Recording& r);
+long long cycle_of(const Recording& r, std::size_t k);
+
+// Any recording, by its kind: an MCAP file (extension .mcap or the MCAP magic) → read_recording_mcap;
+// the CSV recorder's files (run.joint_state.csv, or run.csv when the recorder wrote
+// run.<topic>.csv) → read_recorder_csv; else pedalwave_sim's trajectory.csv → read_recording_csv.
+Recording read_recording(const std::filesystem::path& file);
+
+// The robot's telemetry recorded as MCAP (the daemon's telemetry.record, pedalwave_monitor --record
+// run.mcap): the topics <ns>/pedalwave/joint_state (β, β̇, α) and <ns>/pedalwave/controller_state
+// (u, mode), decoded by the ros2msg schemas the file carries and joined by cycle (seq; their
+// stamp_ns must agree), the cycles in mode RUNNING kept, t the controller time. Throws naming the
+// file and what is missing (a topic, a field) or wrong (a cycle twice, uneven t).
+Recording read_recording_mcap(const std::filesystem::path& file);
+// The same from the CSV recorder's run.joint_state.csv and run.controller_state.csv.
+Recording read_recorder_csv(const std::filesystem::path& joint_state_csv,
+                            const std::filesystem::path& controller_state_csv);
+// One cycle of each topic, and their join (read_recording_mcap and read_recorder_csv share it).
+struct JointRow {
+  long long seq = 0, stamp_ns = 0;
+  double t = 0;
+  std::vector<double> beta, beta_dot, alpha;
+};
+struct ControllerRow {
+  long long seq = 0, stamp_ns = 0;
+  double mode = 0;
+  std::vector<double> u;
+};
+Recording join_telemetry(const std::vector<JointRow>& joints, const std::vector<ControllerRow>& controller,
+                         const std::string& source);
 
 // pedalwave_sim's trajectory.csv (t, alpha_j, beta_j, beta_j_dot, u_j; θ̇ from theta_N_dot and
 // alpha_j_dot when present), j = 1 … N−1. Throws std::runtime_error naming the file and the column

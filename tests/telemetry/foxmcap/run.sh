@@ -34,23 +34,13 @@ skip() {
   echo "SKIPPED: foxglove/mcap test: $*"
   exit 77
 }
-command -v node >/dev/null 2>&1 || skip "node not found (the official readers and client are npm packages)"
-command -v npm >/dev/null 2>&1 || skip "npm not found (the official readers and client are npm packages)"
-node_major=$(node -p 'process.versions.node.split(".")[0]')
-((node_major >= 18)) || skip "node $(node --version) is older than 18"
+# shellcheck source=../../support/npm_peers.sh
+source "$here/../../support/npm_peers.sh"
+if why=$(npm_peers_node_problem); then skip "$why"; fi
 
 pkgs=(@mcap/core@2.2.2 @foxglove/rosmsg@5.0.5 @foxglove/rosmsg2-serialization@3.1.0
       @foxglove/wasm-zstd@1.0.1 @foxglove/wasm-lz4@1.0.2 @foxglove/ws-protocol@0.8.0 ws@8.23.1)
-mkdir -p "$work"
-stamp="$work/node_modules/.pedalwave-foxmcap-packages"
-if [[ ! -f "$stamp" || "$(cat "$stamp")" != "${pkgs[*]}" ]]; then
-  echo '{"private": true, "type": "module"}' > "$work/package.json"
-  if ! npm install --prefix "$work" --no-audit --no-fund --loglevel=error "${pkgs[@]}" >"$work/npm.log" 2>&1; then
-    tail -5 "$work/npm.log" >&2
-    skip "npm install of ${pkgs[*]} failed (registry unreachable?): see $work/npm.log"
-  fi
-  echo "${pkgs[*]}" > "$stamp"
-fi
+why=$(npm_peers_install "$work" foxmcap "${pkgs[@]}") || skip "$why"
 cp "$here/common.mjs" "$here/foxglove_client.mjs" "$here/check_mcap.mjs" "$work/"
 
 # A DDS domain of our own (the lease scheme of tests/telemetry/dds_test_support.hpp).

@@ -7,10 +7,14 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <set>
 #include <sstream>
 
 #include "fit.hpp"
 #include "params.hpp"
+#include "pedalwave/mcap/cdr.hpp"
+#include "pedalwave/mcap/ros2msg.hpp"
+#include "pedalwave/mcap/writer.hpp"
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/config/shipped.hpp"
 #include "pedalwave/config/yaml_reader.hpp"
@@ -332,6 +336,183 @@ TEST(IdentifyData, BadRecordingNamesTheFileAndColumn) {
   const std::string e = error_of([&] { (void)read_recording_csv(p); });
   EXPECT_NE(e.find("x.csv"), std::string::npos) << e;
   EXPECT_NE(e.find("beta_1_dot"), std::string::npos) << e;
+  fs::remove_all(d);
+}
+
+// ---- MCAP recordings --------------------------------------------------------------------------------------
+namespace {
+
+// The robot's telemetry as the recorder writes it: <ns>/pedalwave/joint_state and controller_state
+// (the project's .msg definitions, CDR), one message of each per cycle (seq = cycle, t = controller
+// time), except the cycles listed as lost on either topic. With `controller` false, no
+// controller_state channel.
+void write_telemetry_mcap(const Recording& r, const fs::path& file, const std::set<long>& lost_joint,
+                          const std::set<long>& lost_controller, bool controller = true, long first_seq = 500) {
+  namespace mcap = pedalwave::mcap;
+  const mcap::MsgDirectoryLookup msgs({fs::path(PEDALWAVE_SOURCE_DIR) / "runtime/telemetry/ros2"});
+  mcap::Writer w(file, {.compression = mcap::Compression::zstd, .chunk_size = 64 * 1024});
+  const auto qos = mcap::offered_qos_profiles_yaml({});
+  const auto js = w.add_ros2_channel("/demo/pedalwave/joint_state", "pedalwave/msg/JointState",
+                                     mcap::concatenate_msg_definitions("pedalwave/msg/JointState", msgs), qos);
+  mcap::ChannelId cs = 0;
+  if (controller)
+    cs = w.add_ros2_channel("/demo/pedalwave/controller_state", "pedalwave/msg/ControllerState",
+                            mcap::concatenate_msg_definitions("pedalwave/msg/ControllerState", msgs), qos);
+  mcap::CdrWriter cdr;
+  const auto J = static_cast<std::size_t>(r.joints);
+  {  // The robot's description (gear ratio 200, K_j = 3 + j/10, I_r 6e-8), recorded first.
+    const auto ds = w.add_ros2_channel("/demo/pedalwave/robot_description", "pedalwave/msg/RobotDescription",
+                                       mcap::concatenate_msg_definitions("pedalwave/msg/RobotDescription", msgs), qos);
+    cdr.reset();
+    cdr.write_i32(r.joints + 1);
+    for (double v : {0.07, 0.1, 0.02, 6e-8, 200.0}) cdr.write_f64(v);
+    std::vector<double> K(J);
+    for (std::size_t j = 0; j < J; ++j) K[j] = 3 + 0.1 * static_cast<double>(j);
+    cdr.write_sequence(K);
+    for (double v : {1000.0, 1000.0, 1000.0, 1000.0, 100.0}) cdr.write_f64(v);
+    for (const char* t : {"demo", "/demo", "sim"}) cdr.write_string(t);
+    w.write(ds, 1, cdr.bytes());
+  }
+  auto column = [&](const std::vector<std::vector<double>>& v, std::size_t k) {
+    std::vector<double> out(J);
+    for (std::size_t j = 0; j < J; ++j) out[j] = v[j][k];
+    return out;
+  };
+  // Two cycles in READY before the walk (mode 3, t = 0): not part of the fit.
+  const long ready = 2;
+  for (long k = -ready; k < static_cast<long>(r.t.size()); ++k) {
+    const std::size_t kk = static_cast<std::size_t>(std::max(k, 0L));
+    const auto seq = static_cast<std::uint64_t>(first_seq + ready + k);
+    const std::int64_t stamp = 7'000'000'000 + static_cast<std::int64_t>(seq) * 1'000'000;
+    const double t = k < 0 ? 0.0 : r.t[kk];
+    const auto log = static_cast<mcap::Timestamp>(stamp + 250'000);
+    if (lost_joint.count(k) == 0) {
+      cdr.reset();
+      cdr.write_time(stamp);
+      cdr.write_string("demo");
+      cdr.write_u64(seq);
+      cdr.write_i64(stamp);
+      cdr.write_f64(t);
+      const auto beta = column(r.beta, kk), alpha = column(r.alpha, kk);
+      std::vector<double> defl(J), tau(J);
+      for (std::size_t j = 0; j < J; ++j) defl[j] = beta[j] - alpha[j];
+      cdr.write_sequence(beta);
+      cdr.write_sequence(column(r.beta_dot, kk));
+      cdr.write_sequence(alpha);
+      cdr.write_sequence(defl);
+      cdr.write_sequence(tau);
+      w.write(js, log, cdr.bytes());
+    }
+    if (controller && lost_controller.count(k) == 0) {
+      cdr.reset();
+      cdr.write_time(stamp);
+      cdr.write_string("demo");
+      cdr.write_u64(seq);
+      cdr.write_i64(stamp);
+      cdr.write_f64(t);
+      cdr.write_u8(k < 0 ? 3 : 4);
+      cdr.write_string(k < 0 ? "READY" : "RUNNING");
+      const std::vector<double> zero(J, 0.0);
+      cdr.write_sequence(zero);
+      cdr.write_sequence(zero);
+      cdr.write_sequence(column(r.u, kk));
+      w.write(cs, log + 1000, cdr.bytes());
+    }
+  }
+  w.close();
+}
+
+}  // namespace
+
+// The MCAP recording's table is the walk's, sample for sample (bit-exact), lost cycles are gaps,
+// and the fit through it is the fit of the same samples: with nothing lost identical to the
+// table's; with cycles lost on either topic, the windows that span them left out.
+TEST(IdentifyMcap, RecordingJoinsToTheSameTableAndFit) {
+  Truth tr;
+  std::string yaml;
+  const Recording sim = simulate_recording(tr, 2.0, 1e-5, 5e-3, 1e-3, false, yaml);
+  const fs::path d = temp_dir("mcap");
+  write_telemetry_mcap(sim, d / "walk.mcap", {}, {});
+  const Recording r = read_recording(d / "walk.mcap");
+  ASSERT_EQ(r.joints, sim.joints);
+  ASSERT_EQ(r.t, sim.t);
+  EXPECT_TRUE(r.cycle.empty());
+  EXPECT_EQ(r.beta, sim.beta);
+  EXPECT_EQ(r.beta_dot, sim.beta_dot);
+  EXPECT_EQ(r.alpha, sim.alpha);
+  EXPECT_EQ(r.u, sim.u);
+  EXPECT_EQ(r.gear_ratio, 200.0);  // the description's
+  EXPECT_EQ(r.nominal_I_r, 6e-8);
+  ASSERT_EQ(r.nominal_K.size(), static_cast<std::size_t>(r.joints));
+  for (std::size_t j = 0; j < r.nominal_K.size(); ++j) EXPECT_EQ(r.nominal_K[j], 3 + 0.1 * static_cast<double>(j));
+  const MotorFit a = fit_motor(sim, MotorFitOptions{}), b = fit_motor(r, MotorFitOptions{});
+  EXPECT_EQ(a.K, b.K);
+  EXPECT_EQ(a.b, b.b);
+  EXPECT_EQ(a.I_r, b.I_r);
+
+  // The recorder died: the file cut at 60 % (no summary, no footer) reads up to its last whole
+  // chunk, says so, and its table is the walk's beginning.
+  fs::copy_file(d / "walk.mcap", d / "died.mcap");
+  fs::resize_file(d / "died.mcap", fs::file_size(d / "walk.mcap") * 6 / 10);
+  const Recording died = read_recording(d / "died.mcap");
+  ASSERT_EQ(died.notes.size(), 1u);
+  EXPECT_NE(died.notes[0].find("ends without its summary"), std::string::npos) << died.notes[0];
+  ASSERT_GT(died.t.size(), sim.t.size() / 3);
+  ASSERT_LT(died.t.size(), sim.t.size());
+  for (std::size_t k = 0; k < died.t.size(); ++k) ASSERT_EQ(died.beta[1][k], sim.beta[1][k]) << k;
+
+  // Lost cycles: joint_state 100 and 1033, controller_state 1500.
+  write_telemetry_mcap(sim, d / "lossy.mcap", {100, 1033}, {1500});
+  const Recording l = read_recording(d / "lossy.mcap");
+  ASSERT_EQ(l.t.size(), sim.t.size() - 3);
+  ASSERT_EQ(l.cycle.size(), l.t.size());
+  EXPECT_EQ(l.cycle[100], 101);
+  EXPECT_EQ(l.cycle[1498], 1501);
+  EXPECT_EQ(l.beta[2][1498], sim.beta[2][1501]);
+  const MotorFit c = fit_motor(l, MotorFitOptions{});
+  EXPECT_EQ(c.windows, a.windows - 3);  // each gap costs one window (the windows after it start at it)
+  // The same windows fitted from the table: the table with those three windows' samples cut out
+  // the same way gives the same numbers.
+  Recording cut = sim;
+  cut.cycle.clear();
+  for (std::size_t k = 0; k < sim.t.size(); ++k) cut.cycle.push_back(static_cast<long long>(k));
+  for (long k : {1500L, 1033L, 100L}) {
+    const auto at = static_cast<std::ptrdiff_t>(k);
+    cut.t.erase(cut.t.begin() + at);
+    cut.cycle.erase(cut.cycle.begin() + at);
+    for (auto* v : {&cut.alpha, &cut.beta, &cut.beta_dot, &cut.u})
+      for (auto& col : *v) col.erase(col.begin() + at);
+  }
+  const MotorFit e = fit_motor(cut, MotorFitOptions{});
+  for (std::size_t j = 0; j < a.K.size(); ++j) {
+    EXPECT_EQ(c.K[j], e.K[j]);
+    EXPECT_LT(std::abs(c.K[j] - a.K[j]), 2 * a.K_se[j]);  // and close to the full fit
+  }
+  EXPECT_EQ(c.I_r, e.I_r);
+  fs::remove_all(d);
+}
+
+TEST(IdentifyMcap, MissingTopicIsNamed) {
+  Truth tr;
+  std::string yaml;
+  const Recording sim = simulate_recording(tr, 0.05, 0, 0, 0, false, yaml);
+  const fs::path d = temp_dir("mcap_bad");
+  write_telemetry_mcap(sim, d / "nocontroller.mcap", {}, {}, false);
+  const std::string e = error_of([&] { (void)read_recording(d / "nocontroller.mcap"); });
+  EXPECT_NE(e.find("nocontroller.mcap: no topic /demo/pedalwave/controller_state (pedalwave/msg/ControllerState)"),
+            std::string::npos) << e;
+  EXPECT_NE(e.find("/demo/pedalwave/joint_state (pedalwave/msg/JointState)"), std::string::npos) << e;  // what it has
+  {
+    pedalwave::mcap::Writer w(d / "empty.mcap");
+    (void)w.add_channel(0, "/other", "json");
+  }
+  const std::string e2 = error_of([&] { (void)read_recording(d / "empty.mcap"); });
+  EXPECT_NE(e2.find("empty.mcap: no topic <ns>/pedalwave/joint_state"), std::string::npos) << e2;
+  EXPECT_NE(e2.find("/other"), std::string::npos) << e2;
+  // A file that is not MCAP past its magic: the reader's error.
+  std::ofstream(d / "junk.mcap") << "\x89MCAP0\r\nxx";
+  const std::string e3 = error_of([&] { (void)read_recording(d / "junk.mcap"); });
+  EXPECT_NE(e3.find("junk.mcap: byte"), std::string::npos) << e3;
   fs::remove_all(d);
 }
 

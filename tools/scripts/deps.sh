@@ -23,6 +23,10 @@ pkgs+=(python3-cryptography python3-lxml)
 pkgs+=(libnlopt-dev)
 # The README's picture of the CMake targets (tools/scripts/targets-graph.sh).
 pkgs+=(graphviz)
+# The npm test peers (official readers/clients: @mcap/core, Foxglove's ws-protocol, …): node and
+# npm from Debian, unless a node with npm is already on PATH (e.g. NodeSource's nodejs, which
+# bundles npm and conflicts with Debian's npm package).
+command -v npm >/dev/null 2>&1 && command -v node >/dev/null 2>&1 || pkgs+=(nodejs npm)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

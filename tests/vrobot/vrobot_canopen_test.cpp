@@ -147,11 +147,14 @@ TEST(CanOpenWalk, CspWithLateAndLostAnswersNoFalseAlarm) {
   const double duration = 6;
   const app::DaemonResult sim = app::run_daemon(canopen_config(kSimDriver, kModulePd, duration, true), test::quiet());
   ASSERT_EQ(sim.run.fault, runtime::FaultClass::kNone) << runtime::to_string(sim.run.fault);
-  // The read waits 1.44 ms of the 4 ms period (the bus needs 1.4); the drives answer 1.6 ms after the SYNC (their window
-  // is 3.2 ms) and their thread is held 10 ms every 100 SYNCs.
-  const config::DaemonConfig cfg = canopen_config(kCspDriver, kModulePd, duration, false, ", read_budget: 0.36");
+  // The read waits 1.44 ms of the 4 ms period (the bus needs 1.4); the drives answer 1.5 ms after the
+  // SYNC, their last TPDO ≈ 2.8 ms after it, inside their window (0.95 · 4 ms: room for a slow
+  // sanitizer build's drives' thread), and their thread is held 10 ms every 100 SYNCs.
+  const std::string driver = std::string(kCspDriver).replace(std::string(kCspDriver).size() - 1, 1, ", sync_window: 0.95}");
+  const config::DaemonConfig cfg = canopen_config(driver, kModulePd, duration, false, ", read_budget: 0.36");
+  ASSERT_EQ(cfg.driver.can.canopen.sync_window, 0.95);
   drivers::FaultConfig f;
-  f.reply_latency_ns = 1'600'000;
+  f.reply_latency_ns = 1'500'000;
   f.onset_sync = 250;
   f.thread_stall_ns = 10'000'000;
   f.stall_first_sync = 300;

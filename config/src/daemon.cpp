@@ -205,7 +205,7 @@ void read_driver(const Reader& r, const std::string& base_dir, DaemonConfig& c) 
       o.heartbeat_s = r.bounded("heartbeat", 0.05, 0.001, 65.535, "s");
       o.heartbeat_timeout_s = r.bounded("heartbeat_timeout", 3 * o.heartbeat_s, 0, 100, "s", true);
       // 1007h: the drives' synchronous window as a share of the SYNC period; 0 = none.
-      o.sync_window = r.bounded("sync_window", 0.8, 0, 0.95, "of the SYNC period");
+      o.sync_window = r.bounded("sync_window", 0.9, 0, 0.95, "of the SYNC period");
       if (!(o.heartbeat_timeout_s > o.heartbeat_s)) {
         std::ostringstream os;
         os << "a number > driver.heartbeat = " << o.heartbeat_s << " (the consumer waits longer than the producer's period)";

@@ -61,8 +61,9 @@ struct CanOpenOptions {
   double boot_timeout_s = 2.0;        // boot-ups after NMT reset communication [s]
   // Synchronous window length set on every node (1007h) as a share of the SYNC period (1006h): a
   // drive sends no synchronous TPDO later than this after its SYNC, so every TPDO received before
-  // the next SYNC answers this one. < 1, leaving the next cycle's RPDOs room before its SYNC [-].
-  double sync_window = 0.8;
+  // the next SYNC answers this one. < 1, leaving the next cycle's RPDOs room before its SYNC; longer
+  // than the read budget, so an answer after the read deadline is still sent (and used late) [-].
+  double sync_window = 0.9;
   // CSP: the drives' position loop gains written at bring-up (2010h, 2011h; the module PD's k_p,
   // k_d: the controller's K_p, K_D); a Command with other gains changes them by SDO.
   std::array<double, kMaxJoints> csp_kp{}, csp_kd{};  // [N·m/rad], [N·m·s/rad]

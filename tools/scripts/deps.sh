@@ -23,6 +23,8 @@ pkgs+=(python3-cryptography python3-lxml)
 pkgs+=(libnlopt-dev)
 # The README's picture of the CMake targets (tools/scripts/targets-graph.sh).
 pkgs+=(graphviz)
+# The tools' figures: tools/figures/*.py run by /usr/bin/python3 with matplotlib.
+pkgs+=(python3-matplotlib python3-numpy)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

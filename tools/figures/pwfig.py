@@ -388,5 +388,12 @@ def paths_xt(path, title, t, traces):
     save(fig, path)
 
 
-def out_path(folder, name):
-    return os.path.join(folder, name)
+def plain_log_ticks(axis):
+    """Decimal tick labels (0.05, 0.1, 0.2) on a log axis spanning less than 3 decades, where
+    10⁻¹-style labels leave too few numbers to read values off."""
+    lo, hi = axis.get_view_interval()
+    if lo <= 0 or hi / lo >= 1e3:
+        return
+    axis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    axis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
+        lambda v, _: f"{v:g}" if round(v / 10 ** math.floor(math.log10(v) + 1e-9), 6) in (2.0, 5.0) else ""))

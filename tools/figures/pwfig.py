@@ -105,9 +105,10 @@ class Table:
         return out
 
 
-def read_csv(path, required=()):
+def read_csv(path, required=(), skip_ragged=False):
     """Reads a tool's CSV: '#' comment lines, one header line, rows. Raises DataError naming the
-    file (and the line, or the missing column of `required`)."""
+    file (and the line, or the missing column of `required`). skip_ragged: a row with the wrong
+    number of cells (a recording cut short while written) is skipped with a note instead."""
     try:
         with open(path, newline="") as f:
             lines = f.read().splitlines()
@@ -122,11 +123,15 @@ def read_csv(path, required=()):
     if not body:
         raise DataError(f"{path}: no header line (empty file?)")
     parsed = list(csv.reader(body))
-    names, rows = parsed[0], parsed[1:]
-    for i, r in enumerate(rows):
+    names, rows = parsed[0], []
+    for i, r in enumerate(parsed[1:]):
         if len(r) != len(names):
-            raise DataError(f"{path}: data row {i + 1} has {len(r)} values but the header names "
-                            f"{len(names)} columns")
+            what = f"{path}: data row {i + 1} has {len(r)} values but the header names {len(names)} columns"
+            if not skip_ragged:
+                raise DataError(what)
+            print(what + ": row skipped")
+            continue
+        rows.append(r)
     table = Table(path, names, rows, comments)
     for name in required:
         table[name]  # raises naming the file and the column

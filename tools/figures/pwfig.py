@@ -290,11 +290,16 @@ def outside_right_legend(fig, ax, right_of, handles, labels):
 def body_film(path, title, body, indices, scene, cols=3):
     """A film strip: one panel per sample of `indices`, the same axes limits in every panel."""
     rows = math.ceil(len(indices) / cols)
-    x_lo, x_hi = np.nanmin(body.x) - 0.02, np.nanmax(body.x) + 0.02
+    boxes = scene.get("boxes") or []
+    x_lo = np.nanmin(body.x) - 0.02
+    x_hi = max([np.nanmax(body.x)] + [b["x1"] for b in boxes]) + 0.02
     z_lo = min(np.nanmin(body.z), scene.get("ground_z") or 0.0) - 0.02
-    z_hi = max(np.nanmax(body.z), max([b["z1"] for b in scene.get("boxes") or []] + [0.0])) + 0.02
-    fig, axes = plt.subplots(rows, cols, figsize=(12, 2.2 * rows + 0.8), sharex=True, sharey=True,
+    z_hi = max([np.nanmax(body.z)] + [b["z1"] for b in boxes]) + 0.02
+    panel_w = 0.8 * 12.0 / cols  # the plot box: the figure's width less the margins and gaps
+    panel_h = max(panel_w * (z_hi - z_lo) / (x_hi - x_lo), 1.0) + 0.6  # the panel's title and ticks
+    fig, axes = plt.subplots(rows, cols, figsize=(12, panel_h * rows + 0.9), sharex=True, sharey=True,
                              squeeze=False)
+    fig.subplots_adjust(top=1 - 0.6 / (panel_h * rows + 0.9), hspace=0.35, wspace=0.08)
     for k, ax in enumerate(axes.flat):
         if k >= len(indices):
             ax.axis("off")

@@ -64,7 +64,9 @@ def main(fn):
         sys.exit(2)
     if WRITTEN:
         folder = os.path.dirname(WRITTEN[0])
-        if all(os.path.dirname(p) == folder for p in WRITTEN):
+        if len(WRITTEN) == 1:
+            print(f"wrote {WRITTEN[0]}")
+        elif all(os.path.dirname(p) == folder for p in WRITTEN):
             print(f"wrote {os.path.join(folder, '')}{{{','.join(os.path.basename(p) for p in WRITTEN)}}}")
         else:
             print("wrote " + ", ".join(WRITTEN))

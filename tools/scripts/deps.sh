@@ -4,7 +4,7 @@
 set -euo pipefail
 pkgs=(cmake ninja-build g++ clang libeigen3-dev libspdlog-dev libyaml-cpp-dev libcli11-dev
       libgtest-dev libgmock-dev libbenchmark-dev cyclonedds-dev cyclonedds-tools rt-tests
-      librsvg2-bin can-utils libclang-rt-14-dev
+      can-utils libclang-rt-14-dev
       libzstd-dev liblz4-dev pkg-config  # pedalwave::mcap (MCAP chunk compression)
       slurm-wlm munge  # the campaign layer's Slurm tests (tests/tools/campaign: a one-node cluster)
       dpkg-dev file adduser systemd)  # the Debian package: dpkg-shlibdeps, CPack's ELF check,

@@ -312,6 +312,10 @@ TEST_F(Figures, WithoutMatplotlibTheFiguresAreSkippedWithTheReason) {
 
 TEST_F(Figures, TheScriptsAreFoundInTheSourceTreeAndTheInterpreterIsDebians) {
   EXPECT_TRUE(fs::is_regular_file(tk::figures_dir() / "pwfig.py")) << tk::figures_dir();
+  // Installed (the source tree gone): <prefix>/share/pedalwave/figures.
+  EXPECT_EQ(tk::pick_figures_dir("/nonexistent/pedalwave/tools/figures", "/usr/share/pedalwave/figures"),
+            fs::path("/usr/share/pedalwave/figures"));
+  EXPECT_EQ(tk::pick_figures_dir(dir_, "/usr/share/pedalwave/figures"), dir_);
   EXPECT_EQ(tk::figure_python(), "/usr/bin/python3");
   setenv("PEDALWAVE_PYTHON", "/opt/py/bin/python3", 1);
   EXPECT_EQ(tk::figure_python(), "/opt/py/bin/python3");

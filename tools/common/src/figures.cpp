@@ -13,11 +13,12 @@ namespace pedalwave::toolkit {
 
 namespace fs = std::filesystem;
 
-fs::path figures_dir() {
+fs::path pick_figures_dir(const fs::path& source, const fs::path& installed) {
   std::error_code ec;
-  const fs::path source = PEDALWAVE_FIGURES_DIR;
-  return fs::is_directory(source, ec) ? source : fs::path(PEDALWAVE_INSTALLED_FIGURES_DIR);
+  return fs::is_directory(source, ec) ? source : installed;
 }
+
+fs::path figures_dir() { return pick_figures_dir(PEDALWAVE_FIGURES_DIR, PEDALWAVE_INSTALLED_FIGURES_DIR); }
 
 std::string figure_python() {
   const char* env = std::getenv("PEDALWAVE_PYTHON");

@@ -17,6 +17,9 @@ namespace pedalwave::toolkit {
 // The folder of the figure scripts: the source tree's tools/figures while it exists (a build
 // tree), else the installed <prefix>/share/pedalwave/figures (runtime/deploy/CMakeLists.txt).
 [[nodiscard]] std::filesystem::path figures_dir();
+// `source` when it is a folder, else `installed` (figures_dir() with the configured paths).
+[[nodiscard]] std::filesystem::path pick_figures_dir(const std::filesystem::path& source,
+                                                     const std::filesystem::path& installed);
 
 // The interpreter the scripts run with: $PEDALWAVE_PYTHON when set and not empty, else
 // /usr/bin/python3 (Debian's, which has python3-matplotlib; a user's PATH may put another first).

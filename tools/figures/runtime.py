@@ -72,6 +72,11 @@ def plant_figures(folder):
     speed = np.where(dt > 0, 100.0 * (x - x[j]) / np.where(dt > 0, dt, 1.0), 0.0)
     fig, axes = pwfig.stacked(f"Forward speed ({name})", t, 1, panel_height=3.2)
     axes[0].plot(t, speed, label="COM, 2 s window")
+    i0 = int(np.searchsorted(t, 2.0))  # the average the runtime prints: from t = 2 s on
+    if i0 < len(t) - 1:
+        avg = 100.0 * (x[-1] - x[i0]) / (t[-1] - t[i0])
+        axes[0].axhline(avg, color=pwfig.RED, ls="--", lw=1.2,
+                        label=f"average {avg:.3f} cm/s (t = {t[i0]:.1f} … {t[-1]:.1f} s)")
     axes[0].set_ylabel("COM speed [cm/s]")
     pwfig.finish_stacked(fig, axes, os.path.join(folder, "speed.png"))
 

@@ -23,75 +23,18 @@
 
 namespace {
 
-// A recorded topic: columns by name; text cells become NaN (the tool plots numbers only).
-struct Table {
-  std::string path;
-  std::vector<std::string> names;
-  std::vector<std::vector<double>> cols;
-  const std::vector<double>& col(const std::string& n) const {
-    for (std::size_t i = 0; i < names.size(); ++i)
-      if (names[i] == n) return cols[i];
-    throw std::runtime_error(path + ": no column '" + n + "' (is this a pedalwave_monitor recording?)");
-  }
-  bool has(const std::string& n) const {
-    for (const auto& x : names)
-      if (x == n) return true;
-    return false;
-  }
-  std::size_t rows() const { return cols.empty() ? 0 : cols[0].size(); }
-};
+using Table = pedalwave::toolkit::CsvTable;
 
-std::vector<std::string> split_csv(const std::string& line) {
-  std::vector<std::string> out;
-  std::string cur;
-  bool quoted = false;
-  for (std::size_t i = 0; i < line.size(); ++i) {
-    const char c = line[i];
-    if (quoted) {
-      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') cur += '"', ++i;
-      else if (c == '"') quoted = false;
-      else cur += c;
-    } else if (c == '"') {
-      quoted = true;
-    } else if (c == ',') {
-      out.push_back(cur);
-      cur.clear();
-    } else {
-      cur += c;
-    }
-  }
-  out.push_back(cur);
-  return out;
-}
-
+// A recorded topic: columns by name; text cells become NaN (the tool plots numbers only), a line
+// cut short (the recording still being written) is skipped with a note. A missing optional topic
+// is an empty table.
 Table read_table(const std::string& path, bool required) {
-  Table t;
-  t.path = path;
-  std::ifstream in(path);
-  if (!in) {
+  if (!std::filesystem::exists(path)) {
     if (required) throw std::runtime_error(path + ": cannot open (record with pedalwave_monitor --record PREFIX.csv)");
-    return t;
+    return Table::parse("x\n", path);
   }
-  std::string line;
-  if (!std::getline(in, line)) throw std::runtime_error(path + ": empty file, expected a header line");
-  t.names = split_csv(line);
-  t.cols.assign(t.names.size(), {});
-  std::size_t lineno = 1;
-  while (std::getline(in, line)) {
-    ++lineno;
-    if (line.empty() || line[0] == '#') continue;
-    const auto cells = split_csv(line);
-    if (cells.size() != t.names.size()) {  // a line cut short (recording still being written)
-      std::fprintf(stderr, "%s:%zu: %zu cells, the header names %zu: line skipped\n", path.c_str(),
-                   lineno, cells.size(), t.names.size());
-      continue;
-    }
-    for (std::size_t i = 0; i < cells.size(); ++i) {
-      char* end = nullptr;
-      const double v = std::strtod(cells[i].c_str(), &end);
-      t.cols[i].push_back(end && *end == '\0' && !cells[i].empty() ? v : std::nan(""));
-    }
-  }
+  Table t = Table::read(path, {.text_as_nan = true, .skip_ragged = true});
+  for (const std::string& s : t.skipped()) std::fprintf(stderr, "%s\n", s.c_str());
   return t;
 }
 
@@ -121,19 +64,19 @@ int main(int argc, char** argv) {
     const Table rd = read_table(base + ".robot_description.csv", false);
     std::filesystem::create_directories(out);
     const int J = joints_of(js, "alpha");
-    if (J < 1 || js.rows() < 2) throw std::runtime_error(js.path + ": no joint samples");
+    if (J < 1 || js.rows() < 2) throw std::runtime_error(js.source() + ": no joint samples");
     // Time axis: the runtime's stamp, from the joint samples' first (the figures use the same).
-    const double t0 = js.col("stamp_ns").front();
+    const double t0 = js.column("stamp_ns").front();
     // Shape and path: measured α placed by the observer's predicted body pose.
     if (os.rows() > 0 && os.has("theta_N")) {
       pm::Params prm = pm::paper_params(J + 1);
-      if (rd.rows() > 0) prm.l = 0.5 * rd.col("link_length").back();
+      if (rd.rows() > 0) prm.l = 0.5 * rd.column("link_length").back();
       prm.joints = pm::JointModel::kRigid;  // positions need only α, θ_N, p
       const pm::Model m(prm);
       pm::Data d(m);
-      const auto& stamp_o = os.col("stamp_ns");
-      const auto& seq_o = os.col("seq");
-      const auto& seq_j = js.col("seq");
+      const auto& stamp_o = os.column("stamp_ns");
+      const auto& seq_o = os.column("seq");
+      const auto& seq_j = js.column("seq");
       std::vector<std::string> header{"t", "com_x", "com_z", "head_x", "head_z"};
       for (const char* axis : {"x_", "z_"})
         for (int p = 0; p < m.points(); ++p) header.push_back(axis + std::to_string(p));
@@ -145,10 +88,10 @@ int main(int argc, char** argv) {
       for (std::size_t i = 0; i < os.rows(); ++i) {
         while (k + 1 < js.rows() && seq_j[k + 1] <= seq_o[i]) ++k;  // joint sample of that cycle
         Eigen::VectorXd q(m.nq());
-        for (int j = 0; j < J; ++j) q(j) = js.col("alpha_" + std::to_string(j))[k];
-        q(m.i_theta_N()) = os.col("theta_N")[i];
-        q(m.i_px()) = os.col("p_x")[i];
-        q(m.i_pz()) = os.col("p_z")[i];
+        for (int j = 0; j < J; ++j) q(j) = js.column("alpha_" + std::to_string(j))[k];
+        q(m.i_theta_N()) = os.column("theta_N")[i];
+        q(m.i_px()) = os.column("p_x")[i];
+        q(m.i_pz()) = os.column("p_z")[i];
         if (!q.allFinite()) continue;
         pm::update_kinematics(m, d, q, Eigen::VectorXd());
         const pm::Vec2 c = pm::center_of_mass(m, d, q);

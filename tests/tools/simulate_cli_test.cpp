@@ -33,10 +33,10 @@ struct Result {
 };
 
 // Runs pedalwave_sim with `args` (already shell-quoted where needed), capturing both streams.
-Result run_sim(const std::string& args, const fs::path& dir) {
+Result run_sim(const std::string& args, const fs::path& dir, const std::string& env = "") {
   fs::create_directories(dir);
   const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  const std::string cmd = "'" + kExe + "' " + args + " >'" + out.string() + "' 2>'" + err.string() + "'";
+  const std::string cmd = env + (env.empty() ? "" : " ") + "'" + kExe + "' " + args + " >'" + out.string() + "' 2>'" + err.string() + "'";
   const int status = std::system(cmd.c_str());
   Result r;
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -182,9 +182,24 @@ TEST_F(SimulateCli, FlatSceneWritesCsvSummaryAndFigures) {
     // 0.4 s is shorter than one gait cycle (2 s): no gait-cycle figure.
     EXPECT_FALSE(fs::exists(dir_ / "out" / "gait_cycle.png"));
   } else {
-    EXPECT_NE(r.stdout_text.find("figures skipped"), std::string::npos) << r.stdout_text;
+    EXPECT_NE(r.stderr_text.find("figures skipped"), std::string::npos) << r.stderr_text;
     std::printf("SKIPPED the figures' part: /usr/bin/python3 has no matplotlib\n");
   }
+}
+
+// Without an interpreter (or matplotlib) for the figures the run still succeeds and writes its
+// data; stderr says the figures were skipped and why, also with --quiet.
+TEST_F(SimulateCli, WithoutPythonTheDataAreWrittenAndTheFiguresSkippedLoudly) {
+  const Result r = run_sim("'" + kScenes + "flat_high_friction.yaml' --duration 0.2 --quiet --out '" +
+                               (dir_ / "out").string() + "'",
+                           dir_, "PEDALWAVE_PYTHON=" + (dir_ / "no-python").string());
+  ASSERT_EQ(r.code, 0) << r.stderr_text;
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "trajectory.csv"));
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "body.csv"));
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "shapes.png"));
+  EXPECT_NE(r.stderr_text.find("pedalwave_sim: figures skipped: cannot run the interpreter " +
+                               (dir_ / "no-python").string()),
+            std::string::npos) << r.stderr_text;
 }
 
 // Obstacle scenes get the stair events in the summary (simloop/stair_events.hpp, the code

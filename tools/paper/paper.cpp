@@ -207,7 +207,11 @@ void draw(const Settings& s, const std::vector<std::string>& names) {
   if (!s.plots || names.empty()) return;
   std::vector<std::string> args{s.out_dir.string()};
   args.insert(args.end(), names.begin(), names.end());
-  log(s) << "  figures: " << tk::draw_figures("paper.py", args).message << '\n';
+  const tk::FigureOutcome r = tk::draw_figures("paper.py", args);
+  if (r.status == tk::FigureOutcome::Status::drawn)
+    log(s) << "  figures: " << r.message << '\n';
+  else  // loudly, also with --quiet: the data are written, the figures are not
+    std::cerr << "pedalwave_paper: " << r.message << '\n';
 }
 
 // The negative torque peaks of a friction run, split at the head's crossing.

@@ -117,7 +117,7 @@ int main(int argc, char** argv) {
     std::fflush(stdout);
     const tk::FigureOutcome r = tk::draw_figures(
         "recording.py", {base, out, "--every", tk::format_double(every)});
-    std::printf("%s\n", r.message.c_str());
+    std::fprintf(r.status == tk::FigureOutcome::Status::drawn ? stdout : stderr, "%s\n", r.message.c_str());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 2;

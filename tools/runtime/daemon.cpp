@@ -233,7 +233,10 @@ void write_runtime_data(const std::string& dir, const SampleRecorder& rec,
 // why it wrote nothing.
 void draw_run_figures(const std::string& dir, std::ostream& out) {
   const toolkit::FigureOutcome r = toolkit::draw_figures("runtime.py", {dir});
-  out << (r.status == toolkit::FigureOutcome::Status::drawn ? "plots: " : "") << r.message << "\n";
+  if (r.status == toolkit::FigureOutcome::Status::drawn)
+    out << "plots: " << r.message << "\n";
+  else  // loudly, also when the run prints nothing: the data are there, the figures are not
+    std::cerr << "pedalwave_runtime: --plots " << dir << ": " << r.message << "\n";
 }
 
 }  // namespace

@@ -131,9 +131,14 @@ int main(int argc, char** argv) {
       if (!f) throw std::runtime_error("cannot write " + (cfg.out_dir / "summary.txt").string());
     }
     if (!quiet) std::cout << summary;
-    if (cfg.plots)
-      for (const std::string& line : sim::write_plots(cfg, r))
-        if (!quiet) std::cout << "figure:           " << line << '\n';
+    if (cfg.plots) {
+      const auto figures = sim::write_plots(cfg, r);
+      if (figures.status == pedalwave::toolkit::FigureOutcome::Status::drawn) {
+        if (!quiet) std::cout << "figures:          " << figures.message << '\n';
+      } else {  // loudly, also with --quiet: the data are written, the figures are not
+        std::cerr << "pedalwave_sim: " << figures.message << '\n';
+      }
+    }
     if (failed) {
       std::cerr << "pedalwave_sim: the plant failed at t = " << r.t_end << " s: "
                 << model::to_string(r.status) << " (rows up to then are in " << r.csv.string()

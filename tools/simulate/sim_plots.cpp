@@ -39,8 +39,8 @@ tk::Json scene_json(const model::Scene& s) {
 
 }  // namespace
 
-std::vector<std::string> write_plots(const RunConfig& c, const RunResult& r) {
-  if (r.t.empty()) return {};
+tk::FigureOutcome write_plots(const RunConfig& c, const RunResult& r) {
+  if (r.t.empty()) return {tk::FigureOutcome::Status::skipped, "figures skipped: no samples"};
   // body.csv: the body points of every sample (the shapes), with the COM and the head tip.
   {
     const std::size_t P = r.body_x.front().size();
@@ -77,8 +77,7 @@ std::vector<std::string> write_plots(const RunConfig& c, const RunResult& r) {
     f << info.dump(2) << "\n";
     if (!f) throw std::runtime_error("cannot write " + (c.out_dir / "figures.json").string());
   }
-  const tk::FigureOutcome o = tk::draw_figures("simulate.py", {c.out_dir.string()});
-  return {o.message};
+  return tk::draw_figures("simulate.py", {c.out_dir.string()});
 }
 
 }  // namespace pedalwave::simulate

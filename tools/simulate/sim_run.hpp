@@ -12,6 +12,7 @@
 #include "pedalwave/model/scene.hpp"
 #include "pedalwave/simloop/closed_loop.hpp"
 #include "pedalwave/simloop/stair_events.hpp"
+#include "pedalwave/toolkit/figures.hpp"
 
 namespace pedalwave::simulate {
 
@@ -87,6 +88,6 @@ std::string summary_text(const RunConfig& c, const RunResult& r);
 // tools/figures/simulate.py on them: shapes (snake snapshots over time), gait_cycle, paths (head
 // tip and COM), torques (SEA and commanded, one panel per joint), speed (.png). Returns what was
 // drawn, or why not (no matplotlib: the data stay).
-std::vector<std::string> write_plots(const RunConfig& c, const RunResult& r);
+toolkit::FigureOutcome write_plots(const RunConfig& c, const RunResult& r);
 
 }  // namespace pedalwave::simulate

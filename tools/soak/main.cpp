@@ -443,9 +443,10 @@ int run(const Options& opt) {
   std::printf("\nwritten: %s, %s, %s, %s\n", (out / "soak.json").c_str(), (out / "memory.csv").c_str(), rt_log.c_str(),
               vr_log.c_str());
   std::fflush(stdout);  // before the script's output
-  if (!opt.no_plot)  // tools/figures/soak.py: the timing histograms and the memory over time
-    std::printf("%s\n", tk::draw_figures("soak.py", {(out / "soak.json").string(), (out / "soak.png").string()})
-                            .message.c_str());
+  if (!opt.no_plot) {  // tools/figures/soak.py: the timing histograms and the memory over time
+    const tk::FigureOutcome r = tk::draw_figures("soak.py", {(out / "soak.json").string(), (out / "soak.png").string()});
+    std::fprintf(r.status == tk::FigureOutcome::Status::drawn ? stdout : stderr, "%s\n", r.message.c_str());
+  }
   std::fflush(stdout);
   return verdict.code;
 }

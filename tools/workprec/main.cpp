@@ -341,7 +341,8 @@ int work_precision(const Options& opt) {
   if (!opt.quiet) std::cout << best.to_text();
   std::cout << "wrote " << (fs::path(opt.out) / "summary.md").string() << ", work_precision.csv\n";
   // The work-precision figures from the CSV (tools/figures/workprec.py): <scene>_com.png, _alpha.png.
-  std::cout << tk::draw_figures("workprec.py", {opt.out}).message << '\n';
+  const tk::FigureOutcome figures = tk::draw_figures("workprec.py", {opt.out});
+  (figures.status == tk::FigureOutcome::Status::drawn ? std::cout : std::cerr) << figures.message << '\n';
   return 0;
 }
 

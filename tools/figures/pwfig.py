@@ -256,8 +256,7 @@ def snake_shapes(path, title, body, indices, scene, time_legend=False):
     norm = mcolors.Normalize(vmin=times.min(), vmax=max(times.max(), times.min() + 1e-9))
     cmap = plt.get_cmap("viridis")
     for i, t in zip(indices, times):
-        draw_body(ax, body.x[i], body.z[i], cmap(norm(t)),
-                  lw=1.8)
+        draw_body(ax, body.x[i], body.z[i], cmap(norm(t)))
         if time_legend:
             ax.plot([], [], color=cmap(norm(t)), label=f"t = {fmt(t)} s")
     ax.set_xlim(x_lo - pad_x, x_hi + pad_x)
@@ -266,17 +265,17 @@ def snake_shapes(path, title, body, indices, scene, time_legend=False):
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
     ax.set_title(title)
-    legend_x = ax
+    legend_right_of = ax
     if not time_legend:  # a colour bar as tall as the panel, right beside it
         cax = make_axes_locatable(ax).append_axes("right", size="2.5%", pad=0.12)
         bar = fig.colorbar(matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap), cax=cax)
         bar.set_label("time [s]")
-        legend_x = cax
+        legend_right_of = cax
     handles, labels = ax.get_legend_handles_labels()
     handles += [Line2D([], [], ls="", marker="o", ms=3.5, color="#444"),
                 Line2D([], [], ls="", marker="o", ms=7.5, color="#444")]
     labels += ["joints / tips", "head tip"]
-    outside_right_legend(fig, ax, legend_x, handles, labels)
+    outside_right_legend(fig, ax, legend_right_of, handles, labels)
     save(fig, path)
 
 

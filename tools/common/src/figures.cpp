@@ -43,7 +43,8 @@ FigureOutcome draw_figures(const std::string& script, const std::vector<std::str
   std::error_code ec;
   if (!fs::is_regular_file(path, ec))
     return {FigureOutcome::Status::skipped, "figures skipped: the script " + path.string() + " is not there"};
-  std::vector<std::string> argv_s{python, path.string()};
+  // -B: no __pycache__ beside the scripts (the source tree, or the installed folder).
+  std::vector<std::string> argv_s{python, "-B", path.string()};
   argv_s.insert(argv_s.end(), args.begin(), args.end());
   std::vector<char*> argv;
   for (std::string& a : argv_s) argv.push_back(a.data());

@@ -35,7 +35,7 @@ struct FigureOutcome {
   std::string message{};  // one or more lines for the user: the files written, or why not
 };
 
-// Runs `figure_python() figures_dir()/script args...` (fork/exec, no shell) and waits for it;
+// Runs `figure_python() -B figures_dir()/script args...` (fork/exec, no shell) and waits for it;
 // the script's output becomes the message. Scripts exit 0 when done, 3 when matplotlib or numpy
 // cannot be imported (skipped), 2 for bad data (failed: the file and the column named).
 [[nodiscard]] FigureOutcome draw_figures(const std::string& script, const std::vector<std::string>& args);

@@ -1,10 +1,11 @@
-// pedalwave_plot_recording on a small recording in the monitor's format: plots written, a missing
+// pedalwave_plot_recording on a small recording in the monitor's format: body.csv and the figures written, a missing
 // recording is one clear error with exit code 2, a line cut short is skipped (not fatal).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -49,8 +50,13 @@ TEST(PlotRecording, WritesThePlotsOfARecording) {
   fs::create_directories(dir);
   write_recording(dir, true);
   EXPECT_EQ(run((dir / "run.csv").string() + " --out " + (dir / "plots").string()), 0);
-  for (const char* f : {"joint_signals.svg", "snake_shapes.svg", "paths.svg"})
-    EXPECT_TRUE(fs::exists(dir / "plots" / f)) << f;
+  EXPECT_TRUE(fs::exists(dir / "plots" / "body.csv"));  // the body placed by the observer's pose
+  if (std::system("/usr/bin/python3 -c 'import matplotlib, numpy' 2>/dev/null") == 0) {
+    for (const char* f : {"joint_signals.png", "snake_shapes.png", "paths.png"})
+      EXPECT_TRUE(fs::exists(dir / "plots" / f)) << f;
+  } else {
+    std::printf("SKIPPED the figures' part: /usr/bin/python3 has no matplotlib\n");
+  }
   EXPECT_EQ(run((dir / "absent.csv").string() + " --out " + (dir / "p2").string()), 2);
   fs::remove_all(dir);
 }

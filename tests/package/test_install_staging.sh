@@ -24,9 +24,19 @@ for f in "$CONF_DIR/robot.yaml" "$UNIT_DIR/pedalwave-runtime.service" \
          "$DOC_DIR/README.md" "$DOC_DIR/DEPLOY.md" "$DOC_DIR/PROTOCOL.md" "$DOC_DIR/TELEMETRY.md" \
          "$DATA_DIR/idl/Telemetry.idl" "$DATA_DIR/examples/runtime/demo.yaml" \
          "$DATA_DIR/examples/runtime/socketcan.yaml" "$DATA_DIR/examples/runtime/serial.yaml" \
-         "$DATA_DIR/examples/scenes/flat_high_friction.yaml" "$DATA_DIR/scripts/plot_soak.py"; do
+         "$DATA_DIR/examples/scenes/flat_high_friction.yaml" "$DATA_DIR/figures/soak.py" \
+         "$DATA_DIR/figures/pwfig.py" "$DATA_DIR/figures/runtime.py" "$DATA_DIR/figures/simulate.py" \
+         "$DATA_DIR/figures/recording.py" "$DATA_DIR/figures/workprec.py" "$DATA_DIR/figures/paper.py"; do
   [ -f "$stage$f" ] || fail "$f missing"
 done
+# The installed figure scripts work on their own (pwfig.py found beside them): the work-precision
+# figures of the committed results' CSV.
+if /usr/bin/python3 -c 'import matplotlib, numpy' 2>/dev/null; then
+  mkdir -p "$stage/wp"
+  cp "$(dirname "$0")/../../tools/workprec/results/work_precision.csv" "$stage/wp/"
+  /usr/bin/python3 "$stage$DATA_DIR/figures/workprec.py" "$stage/wp" >/dev/null || fail "the installed workprec.py failed"
+  [ -s "$stage/wp/stair_com.png" ] || fail "the installed workprec.py drew no stair_com.png"
+fi
 grep -q "^ExecStart=$BIN_DIR/pedalwave_runtime --config $CONF_DIR/robot.yaml " "$stage$UNIT_DIR/pedalwave-runtime.service" \
   || fail "the unit's ExecStart does not name $BIN_DIR/pedalwave_runtime and $CONF_DIR/robot.yaml"
 

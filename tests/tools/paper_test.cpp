@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cstdio>
 #include <cstdint>
 #include <cmath>
 #include <cstdlib>
@@ -255,12 +256,21 @@ TEST_F(Paper, AllRunsEndToEndWithEveryTableRowAndFiniteNumbers) {
                          "--K 3 10 --I_r 5e-8");
   ASSERT_EQ(e.code, 0) << e.err;
   for (const char* f : {"paper_table.md", "paper.md", "flat.md", "friction.md", "stair.md", "sweep.md",
-                        "sensitivity.md", "sweep.csv", "flat_com.svg", "friction_torque.svg",
-                        "stair_shapes_kc0.svg", "stair_shapes_kc10.1.svg", "stair_film_kc0.svg",
-                        "stair_progress.svg", "sweep_speed.svg", "sensitivity_K.svg", "stair_grip/stair.md",
-                        "stair_grip/sweep.md", "stair_grip/sweep.csv", "stair_grip/stair_shapes_kc10.1.svg",
+                        "sensitivity.md", "sweep.csv", "data/flat_com.json", "data/flat_high.csv",
+                        "data/friction_torque.json", "data/stair_kc10.1.json", "data/stair_kc10.1.csv",
+                        "data/stair_progress.json", "data/sweep_speed.json", "data/sensitivity_K.json",
+                        "stair_grip/stair.md", "stair_grip/sweep.md", "stair_grip/sweep.csv",
                         "paper_fit/flat.md", "paper_fit/friction.md", "paper_fit/stair.md", "paper_fit/sweep.md"})
     EXPECT_TRUE(fs::exists(out / f)) << f;
+  // The figures, drawn from data/ by tools/figures/paper.py where Debian's python3 has matplotlib.
+  if (std::system("/usr/bin/python3 -c 'import matplotlib, numpy' 2>/dev/null") == 0) {
+    for (const char* f : {"flat_com.png", "friction_torque.png", "stair_shapes_kc0.png", "stair_shapes_kc10.1.png",
+                          "stair_film_kc0.png", "stair_progress.png", "sweep_speed.png", "sensitivity_K.png",
+                          "stair_grip/stair_shapes_kc10.1.png"})
+      EXPECT_TRUE(fs::exists(out / f)) << f;
+  } else {
+    std::printf("SKIPPED the figures' part: /usr/bin/python3 has no matplotlib\n");
+  }
   const std::string both = slurp(out / "paper_table.md");
   // The shipped scenes' table, then the fitted scenes' (config/scenes/paper_fit_*).
   const auto second = both.find("## The fitted scenes beside today's assumptions");

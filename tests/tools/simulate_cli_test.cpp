@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -32,10 +33,10 @@ struct Result {
 };
 
 // Runs pedalwave_sim with `args` (already shell-quoted where needed), capturing both streams.
-Result run_sim(const std::string& args, const fs::path& dir) {
+Result run_sim(const std::string& args, const fs::path& dir, const std::string& env = "") {
   fs::create_directories(dir);
   const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  const std::string cmd = "'" + kExe + "' " + args + " >'" + out.string() + "' 2>'" + err.string() + "'";
+  const std::string cmd = env + (env.empty() ? "" : " ") + "'" + kExe + "' " + args + " >'" + out.string() + "' 2>'" + err.string() + "'";
   const int status = std::system(cmd.c_str());
   Result r;
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -131,7 +132,8 @@ TEST_F(SimulateCli, FreeFallComFollowsTheParabolaUnderTheGaitController) {
   EXPECT_NE(r.stdout_text.find("integrator cost:"), std::string::npos);
   EXPECT_NE(r.stdout_text.find("completed at t = 0.5 s"), std::string::npos) << r.stdout_text;
   EXPECT_TRUE(fs::exists(dir_ / "out" / "summary.txt"));
-  EXPECT_FALSE(fs::exists(dir_ / "out" / "shapes.svg"));  // --no-plots
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "shapes.png"));  // --no-plots
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "body.csv"));
 }
 
 TEST_F(SimulateCli, PassiveFreeFallConservesEnergy) {
@@ -169,10 +171,35 @@ TEST_F(SimulateCli, FlatSceneWritesCsvSummaryAndFigures) {
   EXPECT_GT(fn, 0.5 * (6 * 0.1 + 5 * 0.02) * 9.81);
   EXPECT_LT(fn, 3.0 * (6 * 0.1 + 5 * 0.02) * 9.81);
   EXPECT_NE(r.stdout_text.find("max penetration:"), std::string::npos);
-  for (const char* f : {"shapes.svg", "paths.svg", "torques.svg", "speed.svg"})
-    EXPECT_TRUE(fs::exists(dir_ / "out" / f)) << f;
-  // 0.4 s is shorter than one gait cycle (2 s): no gait-cycle figure.
-  EXPECT_FALSE(fs::exists(dir_ / "out" / "gait_cycle.svg"));
+  // The figures' data (tools/figures/simulate.py draws them; tests/tools/figures checks it).
+  const auto body = pedalwave::toolkit::CsvTable::read(dir_ / "out" / "body.csv");
+  EXPECT_EQ(body.rows(), 21u);
+  EXPECT_EQ(body.cols(), 5u + 2u * 13u);  // t, COM, head tip, x and z of the 2N+1 points
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "figures.json"));
+  if (std::system("/usr/bin/python3 -c 'import matplotlib, numpy' 2>/dev/null") == 0) {
+    for (const char* f : {"shapes.png", "paths.png", "torques.png", "speed.png"})
+      EXPECT_TRUE(fs::exists(dir_ / "out" / f)) << f << "\n" << r.stdout_text;
+    // 0.4 s is shorter than one gait cycle (2 s): no gait-cycle figure.
+    EXPECT_FALSE(fs::exists(dir_ / "out" / "gait_cycle.png"));
+  } else {
+    EXPECT_NE(r.stderr_text.find("figures skipped"), std::string::npos) << r.stderr_text;
+    std::printf("SKIPPED the figures' part: /usr/bin/python3 has no matplotlib\n");
+  }
+}
+
+// Without an interpreter (or matplotlib) for the figures the run still succeeds and writes its
+// data; stderr says the figures were skipped and why, also with --quiet.
+TEST_F(SimulateCli, WithoutPythonTheDataAreWrittenAndTheFiguresSkippedLoudly) {
+  const Result r = run_sim("'" + kScenes + "flat_high_friction.yaml' --duration 0.2 --quiet --out '" +
+                               (dir_ / "out").string() + "'",
+                           dir_, "PEDALWAVE_PYTHON=" + (dir_ / "no-python").string());
+  ASSERT_EQ(r.code, 0) << r.stderr_text;
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "trajectory.csv"));
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "body.csv"));
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "shapes.png"));
+  EXPECT_NE(r.stderr_text.find("pedalwave_sim: figures skipped: cannot run the interpreter " +
+                               (dir_ / "no-python").string()),
+            std::string::npos) << r.stderr_text;
 }
 
 // Obstacle scenes get the stair events in the summary (simloop/stair_events.hpp, the code

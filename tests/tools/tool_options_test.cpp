@@ -1,6 +1,6 @@
 // Issue 15, every tool: an unknown option is bad input — exit 2 and one line — also in the tools
-// without a CLI11 parser of their own before (pedalwave_plotdemo took any word as its folder and
-// exited 0; pedalwave_bench_model exited 1 on a flag Google Benchmark does not take), and a value a
+// without a CLI11 parser of their own before (pedalwave_bench_model exited 1 on a flag Google
+// Benchmark does not take), and a value a
 // tool refuses after parsing (pedalwave_monitor's --interface, std::invalid_argument) is 2, not 1.
 // The built executables are run as child processes in a temporary folder.
 #include <gtest/gtest.h>
@@ -56,24 +56,6 @@ class ToolOptions : public ::testing::Test {
 [[maybe_unused]] int lines(const std::string& s) { return static_cast<int>(std::count(s.begin(), s.end(), '\n')); }
 
 }  // namespace
-
-TEST_F(ToolOptions, PlotdemoRefusesAnUnknownOptionAndASecondFolder) {
-#ifndef PEDALWAVE_PLOTDEMO_EXE
-  GTEST_SKIP() << "pedalwave_plotdemo not built";
-#else
-  Exit e = run(PEDALWAVE_PLOTDEMO_EXE, "--no-such-option");
-  EXPECT_EQ(e.code, 2) << e.err;
-  EXPECT_EQ(e.err.rfind("pedalwave_plotdemo: error: ", 0), 0u) << e.err;
-  EXPECT_NE(e.err.find("--no-such-option"), std::string::npos) << e.err;
-  EXPECT_EQ(lines(e.err), 1) << e.err;
-  EXPECT_TRUE(wrote_nothing()) << "no folder named after the option";
-  e = run(PEDALWAVE_PLOTDEMO_EXE, "one two");
-  EXPECT_EQ(e.code, 2) << e.err;
-  EXPECT_EQ(lines(e.err), 1) << e.err;
-  EXPECT_TRUE(wrote_nothing());
-  EXPECT_EQ(run(PEDALWAVE_PLOTDEMO_EXE, "--help").code, 0);
-#endif
-}
 
 TEST_F(ToolOptions, BenchModelRefusesAFlagGoogleBenchmarkDoesNotTake) {
 #ifndef PEDALWAVE_BENCH_MODEL_EXE

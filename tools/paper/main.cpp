@@ -13,7 +13,7 @@
 // (--backend local|slurm, --slurm-config FILE, --campaign-dir, --partition, --account, --time,
 // --cpus-per-task, --sbatch-opt, --chunk, --throttle, --max-retries, --poll: tools/common's
 // pedalwave/campaign/cli.hpp). `pedalwave_paper campaign-worker --dir D --task I` is the entry of
-// a Slurm array task (not for people). Figures (SVG + PNG) and a Markdown fragment go to
+// a Slurm array task (not for people). Figures (PNG, drawn by tools/figures/paper.py from out/data/) and a Markdown fragment go to
 // DIR; the numbers are printed. Exit codes: 0 done; 2 bad input (one line on stderr: an option, or
 // a scene file the reader refuses, also one read during the run); 1 other errors (e.g. cannot
 // write DIR).

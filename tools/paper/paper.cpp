@@ -14,8 +14,8 @@
 
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/toolkit/csv.hpp"
-#include "pedalwave/toolkit/figure.hpp"
-#include "pedalwave/toolkit/plots.hpp"
+#include "pedalwave/toolkit/figures.hpp"
+#include "pedalwave/toolkit/json.hpp"
 #include "pedalwave/toolkit/progress.hpp"
 #include "pedalwave/toolkit/table.hpp"
 
@@ -143,36 +143,75 @@ RunSpec make_spec(const Settings& s, model::Scene scene, double duration, double
   return r;
 }
 
-void save(const Settings& s, const tk::Figure& fig, const std::string& name) {
-  if (!s.plots) return;
-  const tk::SaveResult r = fig.save(s.out_dir / name);
-  log(s) << "  figure: " << (r.png ? r.svg.string() + " (+ .png)" : r.note) << '\n';
+// ---- The figures' data: <out>/data/<figure>.json (what tools/figures/paper.py draws, its kind and
+// numbers) and the CSVs it names (traces). draw() runs the script on a list of figures.
+
+fs::path data_dir(const Settings& s) { return s.out_dir / "data"; }
+
+void write_figure(const Settings& s, const std::string& name, tk::Json spec) {
+  fs::create_directories(data_dir(s));
+  write_text(data_dir(s) / (name + ".json"), spec.dump(2) + "\n");
 }
 
-std::vector<tk::Patch> scene_patches(const model::Scene& sc, double x_hi) {
-  std::vector<tk::Patch> out;
-  if (!sc.ground_on) return out;
-  const double gz = sc.ground.z;
-  const auto& patches = sc.ground.patches;
-  for (std::size_t i = 0; i < patches.size(); ++i) {
-    const double x1 = i + 1 < patches.size() ? patches[i + 1].x_begin : std::max(x_hi, patches[i].x_begin + 0.05);
-    out.push_back({.x0 = patches[i].x_begin, .x1 = x1, .z0 = gz - 0.012, .z1 = gz,
-                   .label = "μ = " + fmt(patches[i].mu, 2), .fill = tk::Color{70, 130, 200},
-                   .opacity = 0.55, .edge = std::nullopt});
+// A run's trace as CSV (t, COM, head and tail tips, the head joint's torque and η, and the body
+// points when sampled); returns its file name in the data folder.
+std::string write_trace(const Settings& s, const std::string& name, const Trace& tr) {
+  const std::size_t P = tr.body_x.empty() ? 0 : tr.body_x.front().size();
+  std::vector<std::string> header{"t", "com_x", "com_z", "head_x", "head_z", "tail_x", "tail_z", "tau_head", "eta_head"};
+  for (const char* axis : {"x_", "z_"})
+    for (std::size_t k = 0; k < P; ++k) header.push_back(axis + std::to_string(k));
+  const std::string file = name + ".csv";
+  tk::CsvWriter csv(data_dir(s) / file, header);
+  std::vector<double> row(header.size());
+  for (std::size_t i = 0; i < tr.t.size(); ++i) {
+    row[0] = tr.t[i];
+    row[1] = tr.com_x[i];
+    row[2] = tr.com_z[i];
+    row[3] = tr.head_x[i];
+    row[4] = tr.head_z[i];
+    row[5] = tr.tail_x[i];
+    row[6] = tr.tail_z[i];
+    row[7] = tr.tau_head[i];
+    row[8] = tr.eta_head[i];
+    for (std::size_t k = 0; k < P; ++k) {
+      row[9 + k] = tr.body_x[i][k];
+      row[9 + P + k] = tr.body_z[i][k];
+    }
+    csv.row(row);
   }
-  for (std::size_t i = 0; i < sc.boxes.size(); ++i) {
-    const model::Box& b = sc.boxes[i];
-    out.push_back({.x0 = b.x_near, .x1 = b.x_near + b.width, .z0 = gz, .z1 = gz + b.height,
-                   .label = i == 0 ? "box " + fmt(b.width * 100) + " × " + fmt(b.height * 100) + " cm" : "",
-                   .fill = tk::Color{160, 120, 80}, .opacity = 0.5, .edge = tk::Color{90, 60, 30}});
-  }
-  return out;
+  csv.close();
+  return file;
 }
 
-std::vector<double> scaled(const std::vector<double>& v, double f) {
-  std::vector<double> o(v.size());
-  for (std::size_t i = 0; i < v.size(); ++i) o[i] = v[i] * f;
-  return o;
+tk::Json numbers(const std::vector<double>& v) {
+  tk::Json a = tk::Json::array();
+  for (double x : v) a.push(x);
+  return a;
+}
+
+tk::Json scene_json(const model::Scene& sc) {
+  tk::Json boxes = tk::Json::array(), patches = tk::Json::array();
+  for (const model::Box& b : sc.boxes)
+    boxes.push(tk::Json::object()
+                   .set("x0", b.x_near).set("x1", b.x_near + b.width)
+                   .set("z0", sc.ground.z).set("z1", sc.ground.z + b.height));
+  for (const auto& p : sc.ground.patches) patches.push(tk::Json::object().set("x_begin", p.x_begin).set("mu", p.mu));
+  return tk::Json::object()
+      .set("ground_z", sc.ground_on ? tk::Json(sc.ground.z) : tk::Json())
+      .set("boxes", std::move(boxes))
+      .set("patches", std::move(patches));
+}
+
+// Draws the figures (tools/figures/paper.py) whose data/<name>.json were written.
+void draw(const Settings& s, const std::vector<std::string>& names) {
+  if (!s.plots || names.empty()) return;
+  std::vector<std::string> args{s.out_dir.string()};
+  args.insert(args.end(), names.begin(), names.end());
+  const tk::FigureOutcome r = tk::draw_figures("paper.py", args);
+  if (r.status == tk::FigureOutcome::Status::drawn)
+    log(s) << "  figures: " << r.message << '\n';
+  else  // loudly, also with --quiet: the data are written, the figures are not
+    std::cerr << "pedalwave_paper: " << r.message << '\n';
 }
 
 // The negative torque peaks of a friction run, split at the head's crossing.
@@ -255,15 +294,11 @@ FlatResult flat(const Settings& s, double duration) {
          << " s (the first gait period excluded), COM x\n";
 
   if (s.plots) {
-    tk::Figure fig(1, 1, 1000, 500);
-    auto& ax = fig.axes();
-    ax.title("Flat ground: whole-robot COM x (average speed from t = " + fmt(f.avg_from) + " s)")
-        .xlabel("time [s]").ylabel("COM x [cm]").xmargin(0);
-    ax.line(res[0].trace.t, scaled(res[0].trace.com_x, 100), {.label = "μ = 0.82: " + cms(f.v_high)});
-    ax.line(res[1].trace.t, scaled(res[1].trace.com_x, 100), {.label = "μ = 0.40: " + cms(f.v_low)});
-    ax.vline(f.avg_from, {.label = "t₀"});
-    ax.legend(tk::LegendPos::upper_left);
-    save(s, fig, "flat_com.svg");
+    tk::Json runs = tk::Json::array();
+    runs.push(tk::Json::object().set("label", "μ = 0.82: " + cms(f.v_high)).set("csv", write_trace(s, "flat_high", res[0].trace)));
+    runs.push(tk::Json::object().set("label", "μ = 0.40: " + cms(f.v_low)).set("csv", write_trace(s, "flat_low", res[1].trace)));
+    write_figure(s, "flat_com", tk::Json::object().set("kind", "flat_com").set("avg_from", f.avg_from).set("runs", std::move(runs)));
+    draw(s, {"flat_com"});
   }
   std::ostringstream md;
   md << "### Flat ground (`pedalwave_paper flat" << prefix_arg(s) << "`)\n\n"
@@ -275,7 +310,7 @@ FlatResult flat(const Settings& s, double duration) {
   t.add_row({"speed, μ = 0.82", "2.40 cm/s", "2.18 cm/s", cms(f.v_high)});
   t.add_row({"speed, μ = 0.40", "—", "—", cms(f.v_low)});
   t.add_row({"gain 0.82 over 0.40", "+20.3 %", "+13.7 %", pct(f.gain)});
-  md << t.to_markdown() << "\n![COM x](flat_com.svg)\n";
+  md << t.to_markdown() << "\n![COM x](flat_com.png)\n";
   f.markdown = md.str();
   write_text(s.out_dir / "flat.md", f.markdown);
   return f;
@@ -311,29 +346,14 @@ FrictionResult friction(const Settings& s, double duration) {
          << " N·m: change " << pct(f.change) << "   (paper: experiment +4.3 %, simulation +16.3 %)\n";
 
   if (s.plots) {
-    const Trace& tr = r.trace;
-    tk::Figure fig(2, 1, 1100, 650);
-    fig.share_x(true).title("Friction change: SEA torque of the head joint (joint N−1), the paper's Fig. 7");
-    auto& ax = fig.axes(0, 0);
-    ax.ylabel("τ_s = K(β − α) [N·m]").xmargin(0);
-    ax.line(tr.t, tr.tau_head, {.label = "head joint", .width_px = 1.2});
-    ax.scatter(p.t_before, p.before, {.label = "peaks before: mean " + fmt(f.mean_before, 3) + " N·m",
-                                      .color = tk::cycle_color(1), .marker = tk::Marker::circle});
-    ax.scatter(p.t_after, p.after, {.label = "peaks after: mean " + fmt(f.mean_after, 3) + " N·m (" + pct(f.change) + ")",
-                                    .color = tk::cycle_color(5), .marker = tk::Marker::square});
-    if (!std::isnan(f.t_cross)) ax.vline(f.t_cross, {.label = "head tip at x = " + fmt(f.cross_x) + " m", .color = tk::colors::red});
-    if (!std::isnan(f.mean_before)) ax.hline(-f.mean_before, {.color = tk::cycle_color(1), .dash = tk::Dash::dotted});
-    if (!std::isnan(f.mean_after)) ax.hline(-f.mean_after, {.color = tk::cycle_color(5), .dash = tk::Dash::dotted});
-    ax.legend(tk::LegendPos::outside_right);
-    auto& bx = fig.axes(1, 0);
-    bx.xlabel("time [s]").ylabel("x [m]").xmargin(0);
-    bx.line(tr.t, tr.head_x, {.label = "head tip"});
-    bx.line(tr.t, tr.com_x, {.label = "COM"});
-    bx.line(tr.t, tr.tail_x, {.label = "tail tip"});
-    bx.hline(f.cross_x, {.label = "μ changes"});
-    if (!std::isnan(f.t_cross)) bx.vline(f.t_cross, {.color = tk::colors::red});
-    bx.legend(tk::LegendPos::outside_right);
-    save(s, fig, "friction_torque.svg");
+    tk::Json fig = tk::Json::object();
+    fig.set("kind", "friction_torque").set("trace", write_trace(s, "friction", r.trace));
+    fig.set("t_cross", f.t_cross).set("cross_x", f.cross_x);
+    fig.set("peaks_before", tk::Json::object().set("t", numbers(p.t_before)).set("tau", numbers(p.before)));
+    fig.set("peaks_after", tk::Json::object().set("t", numbers(p.t_after)).set("tau", numbers(p.after)));
+    fig.set("mean_before", f.mean_before).set("mean_after", f.mean_after).set("change_label", pct(f.change));
+    write_figure(s, "friction_torque", std::move(fig));
+    draw(s, {"friction_torque"});
   }
   std::ostringstream md;
   md << "### Friction change (`pedalwave_paper friction" << prefix_arg(s) << "`)\n\n"
@@ -346,7 +366,7 @@ FrictionResult friction(const Settings& s, double duration) {
   t.add_row({"before the crossing", std::to_string(p.before.size()), fmt(f.mean_before, 4)});
   t.add_row({"after the crossing", std::to_string(p.after.size()), fmt(f.mean_after, 4)});
   md << t.to_markdown() << "\nChange of the mean peak magnitude: **" << pct(f.change)
-     << "** (paper: experiment +4.3 %, simulation +16.3 %).\n\n![torque](friction_torque.svg)\n";
+     << "** (paper: experiment +4.3 %, simulation +16.3 %).\n\n![torque](friction_torque.png)\n";
   f.markdown = md.str();
   write_text(s.out_dir / "friction.md", f.markdown);
   return f;
@@ -355,70 +375,24 @@ FrictionResult friction(const Settings& s, double duration) {
 // ================================================================================================
 namespace {
 
-// Snapshot indices of a trace, about every `every` seconds over [0, t_hi].
-std::vector<std::size_t> snapshot_indices(const Trace& tr, double every, double t_hi) {
-  std::vector<std::size_t> idx;
-  if (tr.t.empty()) return idx;
-  double next = tr.t.front();
-  for (std::size_t i = 0; i < tr.t.size() && tr.t[i] <= t_hi + 1e-9; ++i)
-    if (tr.t[i] >= next - 1e-9) {
-      idx.push_back(i);
-      next += every;
-    }
-  return idx;
-}
-
-void stair_plots(const Settings& s, const StairCase& c, double snapshot_every) {
+// The data of stair_shapes_<tag> and stair_film_<tag>: the run's trace, the climb window and the
+// snapshot period, the box and its events; returns the figure name.
+std::string stair_figure(const Settings& s, const StairCase& c, double snapshot_every) {
   const RunResult& r = c.run;
   const Trace& tr = r.trace;
-  if (tr.t.empty()) return;
+  if (tr.t.empty()) return {};
   const double T = tr.t.back();
   const StairEvents& e = r.stair;
   // The climb window: until a few seconds after the whole body passed, or the whole run.
   const double t_hi = std::isnan(e.t_body_past) ? T : std::min(T, e.t_body_past + 3.0);
-  const double every = std::max(snapshot_every, t_hi / 30.0);
-  const auto idx = snapshot_indices(tr, every, t_hi);
-  double x_hi = -1e9;
-  for (const auto& bx : tr.body_x)
-    for (double x : bx) x_hi = std::max(x_hi, x);
-  const auto patches = scene_patches(r.resolved, x_hi);
-  {
-    std::vector<tk::ShapeSnapshot> snaps;
-    for (std::size_t i : idx) snaps.push_back({.t = tr.t[i], .x = tr.body_x[i], .z = tr.body_z[i]});
-    tk::ShapePlotOptions opt;
-    opt.title = "Stair, k_c = " + fmt(c.k_c) + ": body every " + fmt(every, 2) + " s, t = 0 … " +
-                fmt(t_hi, 3) + " s (head tip ●); head on top " + secs(e.t_head_on_top) +
-                ", body past " + secs(e.t_body_past);
-    opt.ground_z = r.resolved.ground.z;
-    opt.patches = patches;
-    save(s, tk::snake_shapes_plot(snaps, opt), "stair_shapes_" + kc_tag(c.k_c) + ".svg");
-  }
-  // Film strip: 12 panels evenly over the window, one body each.
-  {
-    constexpr int kRows = 4, kCols = 3;
-    tk::Figure fig(kRows, kCols, 1200, 900);
-    fig.title("Stair, k_c = " + fmt(c.k_c) + ": snapshots (head tip ●)");
-    double x_lo = 1e9;
-    for (const auto& bx : tr.body_x)
-      for (double x : bx) x_lo = std::min(x_lo, x);
-    for (int k = 0; k < kRows * kCols; ++k) {
-      const double tk_ = t_hi * k / (kRows * kCols - 1);
-      std::size_t i = 0;
-      while (i + 1 < tr.t.size() && tr.t[i] < tk_ - 1e-9) ++i;
-      auto& ax = fig.axes(k / kCols, k % kCols);
-      ax.title("t = " + fmt(tr.t[i], 3) + " s").xlim(x_lo - 0.02, x_hi + 0.02).ylim(-0.02, 0.2).equal_aspect(true);
-      ax.rect(-std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
-              -std::numeric_limits<double>::infinity(), r.resolved.ground.z,
-              {.fill = tk::Color{110, 85, 60}, .opacity = 0.25});
-      ax.rect(e.x_near, e.x_far, r.resolved.ground.z, e.top,
-              {.fill = tk::Color{160, 120, 80}, .opacity = 0.5, .edge = tk::Color{90, 60, 30}});
-      ax.line(tr.body_x[i], tr.body_z[i], {.color = tk::cycle_color(0), .width_px = 2.5});
-      const std::vector<double> hx{tr.body_x[i].back()}, hz{tr.body_z[i].back()};
-      ax.scatter(hx, hz, {.color = tk::colors::red, .marker_px = 7});
-      ax.legend(tk::LegendPos::none);
-    }
-    save(s, fig, "stair_film_" + kc_tag(c.k_c) + ".svg");
-  }
+  const std::string tag = kc_tag(c.k_c);
+  tk::Json spec = tk::Json::object();
+  spec.set("kind", "stair").set("tag", tag).set("k_c", c.k_c).set("trace", write_trace(s, "stair_" + tag, tr));
+  spec.set("t_hi", t_hi).set("every", std::max(snapshot_every, t_hi / 30.0));
+  spec.set("t_head_on_top", e.t_head_on_top).set("t_body_past", e.t_body_past);
+  spec.set("scene", scene_json(r.resolved));
+  write_figure(s, "stair_" + tag, std::move(spec));
+  return "stair_" + tag;
 }
 
 }  // namespace
@@ -482,32 +456,20 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
   }
   if (!out.heights.empty()) log(s) << "  box-height scan (same scene, lower boxes):\n" << ht.to_text();
   if (s.plots) {
-    for (const StairCase& c : out.cases) stair_plots(s, c, snapshot_every);
-    tk::Figure fig(3, 1, 1100, 750);
-    fig.share_x(true).title("Stair: progress over time");
-    auto& a = fig.axes(0, 0);
-    auto& b = fig.axes(1, 0);
-    auto& cax = fig.axes(2, 0);
-    a.ylabel("head tip z [cm]").xmargin(0);
-    b.ylabel("x [cm]").xmargin(0);
-    cax.ylabel("η of head joint [rad]").xlabel("time [s]").xmargin(0);
-    a.hline(e0.top * 100, {.label = "box top"});
-    b.hline(e0.x_near * 100, {.label = "near edge"});
-    b.hline(e0.x_far * 100, {.label = "far edge"});
-    for (std::size_t i = 0; i < out.cases.size(); ++i) {
-      const StairCase& c = out.cases[i];
-      const Trace& tr = c.run.trace;
-      const tk::Color col = tk::cycle_color(i);
-      const std::string lab = "k_c = " + fmt(c.k_c);
-      a.line(tr.t, scaled(tr.head_z, 100), {.label = lab, .color = col, .width_px = 1.2});
-      b.line(tr.t, scaled(tr.com_x, 100), {.label = lab + " COM", .color = col});
-      b.line(tr.t, scaled(tr.tail_x, 100), {.label = lab + " tail tip", .color = col, .dash = tk::Dash::dashed});
-      cax.line(tr.t, tr.eta_head, {.label = lab, .color = col, .width_px = 1.2});
+    std::vector<std::string> names;
+    tk::Json cases = tk::Json::array();
+    for (const StairCase& c : out.cases) {
+      const std::string name = stair_figure(s, c, snapshot_every);
+      if (name.empty()) continue;  // no samples
+      names.push_back(name);
+      cases.push(tk::Json::object().set("k_c", c.k_c).set("trace", name + ".csv"));
     }
-    a.legend(tk::LegendPos::outside_right);
-    b.legend(tk::LegendPos::outside_right);
-    cax.legend(tk::LegendPos::outside_right);
-    save(s, fig, "stair_progress.svg");
+    write_figure(s, "stair_progress", tk::Json::object()
+                                          .set("kind", "stair_progress")
+                                          .set("top", e0.top).set("x_near", e0.x_near).set("x_far", e0.x_far)
+                                          .set("cases", std::move(cases)));
+    names.push_back("stair_progress");
+    draw(s, names);
   }
   std::ostringstream md;
   md << "### Stair (`pedalwave_paper stair" << stair_arg(s) << "`, scene `" << s.scene_prefix << s.stair_scene << "`)\n\n"
@@ -522,9 +484,9 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
   if (!out.heights.empty())
     md << "The same runs over lower boxes (which height can the robot climb?):\n\n" << ht.to_markdown() << '\n';
   for (const StairCase& c : out.cases)
-    md << "![k_c = " << fmt(c.k_c) << "](stair_shapes_" << kc_tag(c.k_c) << ".svg)\n"
-       << "![k_c = " << fmt(c.k_c) << " film](stair_film_" << kc_tag(c.k_c) << ".svg)\n";
-  md << "![progress](stair_progress.svg)\n";
+    md << "![k_c = " << fmt(c.k_c) << "](stair_shapes_" << kc_tag(c.k_c) << ".png)\n"
+       << "![k_c = " << fmt(c.k_c) << " film](stair_film_" << kc_tag(c.k_c) << ".png)\n";
+  md << "![progress](stair_progress.png)\n";
   out.markdown = md.str();
   write_text(s.out_dir / "stair.md", out.markdown);
   return out;
@@ -639,29 +601,16 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
     csv.close();
   }
   if (s.plots && !out.points.empty()) {
-    std::vector<double> k, v, kp, vp;
-    for (const SweepPoint& p : out.points) {
-      k.push_back(p.k_c);
-      v.push_back(p.speed * 100);
-      if (!std::isnan(p.stair.t_body_past)) {
-        kp.push_back(p.k_c);
-        vp.push_back(p.speed * 100);
-      }
-    }
-    tk::Figure fig(1, 1, 1000, 550);
-    auto& ax = fig.axes();
-    ax.title("Average forward speed over the stair against k_c (" + fmt(o.duration) + " s each; the paper's Fig. 9)")
-        .xlabel("k_c").ylabel("average speed [cm/s]");
-    ax.line(k, v, {.label = "ours", .marker = tk::Marker::circle, .marker_px = 3.5});
-    if (!kp.empty()) ax.scatter(kp, vp, {.label = "whole body past the box", .color = tk::cycle_color(2), .marker_px = 6, .hollow_markers = true});
-    if (have_best) {
-      const std::vector<double> bk{out.points[out.best].k_c}, bv{out.points[out.best].speed * 100};
-      ax.scatter(bk, bv, {.label = "best k_c = " + fmt(bk[0]) + " (" + pct(out.gain) + ")",
-                          .color = tk::colors::red, .marker = tk::Marker::diamond, .marker_px = 11});
-    }
-    ax.hline(out.v0 * 100, {.label = "k_c = 0"});
-    ax.vline(PaperValues::kBestKc, {.label = "paper's best 10.1", .dash = tk::Dash::dotted});
-    save(s, fig, "sweep_speed.svg");
+    tk::Json spec = tk::Json::object();
+    spec.set("kind", "sweep_speed").set("csv", "../sweep.csv").set("duration", o.duration).set("v0", out.v0);
+    spec.set("paper_best_k_c", PaperValues::kBestKc);
+    if (have_best)
+      spec.set("best", tk::Json::object()
+                           .set("k_c", out.points[out.best].k_c)
+                           .set("speed", out.points[out.best].speed)
+                           .set("gain_label", pct(out.gain)));
+    write_figure(s, "sweep_speed", std::move(spec));
+    draw(s, {"sweep_speed"});
   }
   std::ostringstream md;
   md << "### k_c sweep (`pedalwave_paper sweep" << stair_arg(s) << "`)\n\n"
@@ -694,7 +643,7 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
                    secs(p.stair.t_head_on_top), secs(p.stair.t_body_past)});
     }
     md << "Every whole k_c and the best (all points: `sweep.csv`):\n\n" << t.to_markdown()
-       << "\n![sweep](sweep_speed.svg)\n";
+       << "\n![sweep](sweep_speed.png)\n";
   }
   out.markdown = md.str();
   write_text(s.out_dir / "sweep.md", out.markdown);
@@ -805,17 +754,14 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
       sk.push_back(row->stair_vkc * 100);
     }
     if (k.size() >= 2) {
-      tk::Figure fig(1, 1, 1000, 550);
-      auto& ax = fig.axes();
-      ax.title("Speed against the SEA stiffness K (I_r = " + fmt(Ir0) + " kg·m²)").xscale(tk::Scale::log10)
-          .xlabel("K [N·m/rad]").ylabel("average speed [cm/s]");
-      ax.line(k, vh, {.label = "flat μ = 0.82", .marker = tk::Marker::circle});
-      ax.line(k, vl, {.label = "flat μ = 0.40", .marker = tk::Marker::square});
-      ax.line(k, s0, {.label = "stair k_c = 0", .marker = tk::Marker::triangle});
-      ax.line(k, sk, {.label = "stair k_c = " + fmt(o.k_c), .marker = tk::Marker::diamond});
-      ax.hline(PaperValues::kFlatSpeedSim * 100, {.label = "paper sim. flat 0.82"});
-      ax.legend(tk::LegendPos::outside_right);
-      save(s, fig, "sensitivity_K.svg");
+      write_figure(s, "sensitivity_K", tk::Json::object()
+                                           .set("kind", "sensitivity_K")
+                                           .set("I_r", Ir0).set("k_c", o.k_c)
+                                           .set("K", numbers(k)).set("flat_high", numbers(vh))
+                                           .set("flat_low", numbers(vl)).set("stair_0", numbers(s0))
+                                           .set("stair_kc", numbers(sk))
+                                           .set("paper_flat_sim", PaperValues::kFlatSpeedSim * 100));
+      draw(s, {"sensitivity_K"});
     }
   }
   return out;
@@ -1018,7 +964,7 @@ std::string paper_table(const AllResult& r, std::size_t* rows, std::size_t* fitt
                   " (k_c = 10.1). " + stuck(s0) + stuck(s1) + climbable +
                   "Our contact also tests the box's corners against the link segments, which the "
                   "paper names as a remedy but whose use in its results it does not state; see the shape plots "
-                  "(stair_shapes_*.svg, stair_film_*.svg) for what the body does at the box.");
+                  "(stair_shapes_*.png, stair_film_*.png) for what the body does at the box.");
   t.add_row({"k_c sweep: best k_c (0 … 15 step 0.1)", "—", "10.1", fmt(best_k), "`pedalwave_paper sweep`"});
   t.add_row({"k_c sweep: best over k_c = 0", "—", "+24.8 %", pct(sw.gain) + " (" + cms(best_v) + " vs " + cms(sw.v0) + ")",
              "`pedalwave_paper sweep`"});

@@ -35,6 +35,9 @@
 #include "pedalwave/runtime/consumer.hpp"
 #include "pedalwave/simloop/plant_checks.hpp"
 #include "pedalwave/toolkit/cli.hpp"
+#include "pedalwave/toolkit/csv.hpp"
+#include "pedalwave/toolkit/figures.hpp"
+#include "pedalwave/toolkit/json.hpp"
 #include "pedalwave/toolkit/toolkit.hpp"
 #if PEDALWAVE_HAS_DDS
 #include "pedalwave/telemetry/dds_telemetry.hpp"
@@ -127,72 +130,67 @@ double com_x(const model::Model& m, model::Data& data, const double* q) {
   return model::center_of_mass(m, data, qv).x();
 }
 
-void write_plant_plots(const std::string& dir, drivers::SimDriver& sim,
-                       const config::DaemonConfig& cfg, std::ostream& out) {
+// The simulated plant's data for the figures (tools/figures/runtime.py): body.csv (per recorded
+// sample t, the COM, the head tip and the 2N+1 body points) and plant.json (the scene: ground,
+// boxes, friction patches).
+void write_plant_data(const std::string& dir, drivers::SimDriver& sim, const config::DaemonConfig& cfg) {
   namespace tk = toolkit;
   std::filesystem::create_directories(dir);
   const model::Model& m = sim.sim().plant().model();
   model::Data data(m);
   const drivers::SimRecording& r = sim.recording();
   const auto nq = static_cast<std::size_t>(r.nq);
-  // Snake shapes: one snapshot per second.
-  std::vector<tk::ShapeSnapshot> snaps;
-  std::vector<double> t, cx, cz, hx, hz, speed;
+  std::vector<std::string> header{"t", "com_x", "com_z", "head_x", "head_z"};
+  for (const char* axis : {"x_", "z_"})
+    for (int k = 0; k < m.points(); ++k) header.push_back(axis + std::to_string(k));
+  tk::CsvWriter csv(dir + "/body.csv", header);
+  csv.comment("the simulated plant of " + cfg.name + ": COM, head tip and the 2N+1 body points (tail tip first) [m]");
+  std::vector<double> row(header.size());
+  const auto P = static_cast<std::size_t>(m.points());
   for (std::size_t i = 0; i < r.count; ++i) {
     const Eigen::Map<const Eigen::VectorXd> q(&r.q[i * nq], r.nq);
     model::update_kinematics(m, data, q, Eigen::VectorXd());
     const model::Vec2 c = model::center_of_mass(m, data, q);
     const model::Vec2 h = model::point_position(m, data, q, m.point_head());
-    t.push_back(r.t[i]);
-    cx.push_back(c.x());
-    cz.push_back(c.y());
-    hx.push_back(h.x());
-    hz.push_back(h.y());
-    if (i % 100 == 0) {
-      tk::ShapeSnapshot s;
-      s.t = r.t[i];
-      for (int k = 0; k < m.points(); ++k) {
-        const model::Vec2 p = model::point_position(m, data, q, k);
-        s.x.push_back(p.x());
-        s.z.push_back(p.y());
-      }
-      snaps.push_back(std::move(s));
+    row[0] = r.t[i];
+    row[1] = c.x();
+    row[2] = c.y();
+    row[3] = h.x();
+    row[4] = h.y();
+    for (std::size_t k = 0; k < P; ++k) {
+      const model::Vec2 p = model::point_position(m, data, q, static_cast<int>(k));
+      row[5 + k] = p.x();
+      row[5 + P + k] = p.y();
     }
+    csv.row(row);
   }
-  // COM speed over a sliding 2 s window (one gait period at ω = π).
-  for (std::size_t i = 0; i < t.size(); ++i) {
-    const std::size_t j = i >= 200 ? i - 200 : 0;
-    speed.push_back(i > j ? 100.0 * (cx[i] - cx[j]) / (t[i] - t[j]) : 0.0);
-  }
+  csv.close();
   const model::Scene& scene = sim.sim().plant().scene();
-  tk::ShapePlotOptions so;
-  so.title = "Snake shape, one snapshot per second (" + cfg.name + ", head = large dot)";
-  so.ground_z = scene.ground_on ? scene.ground.z : tk::kNone;
+  tk::Json boxes = tk::Json::array(), patches = tk::Json::array();
   for (const model::Box& b : scene.boxes)
-    so.patches.push_back({.x0 = b.x_near, .x1 = b.x_near + b.width, .z0 = scene.ground.z,
-                          .z1 = scene.ground.z + b.height, .label = "box"});
-  const auto s1 = tk::snake_shapes_plot(snaps, so).save(dir + "/snake_shapes.svg");
-  std::vector<tk::PathTrace> paths{{.label = "COM", .t = t, .x = cx, .z = cz},
-                                   {.label = "head tip", .t = t, .x = hx, .z = hz}};
-  const auto s2 = tk::path_plot(paths, {.title = "COM and head paths", .view = tk::PathView::xt})
-                      .save(dir + "/paths.svg");
-  std::vector<tk::SignalPanel> sp{{.ylabel = "COM speed [cm/s] (2 s window)",
-                                   .signals = {{.label = "forward speed", .y = speed}}}};
-  const auto s4 = tk::stacked_time_series(t, sp, {.title = "Forward speed"}).save(dir + "/speed.svg");
-  out << "plots: " << dir << "/{snake_shapes,paths,speed}.svg" << (s1.png ? " (+ .png)" : "")
-      << " (the simulated plant)\n";
-  if (!s1.note.empty()) out << "  note: " << s1.note << "\n";
-  (void)s2, (void)s4;
+    boxes.push(tk::Json::object()
+                   .set("x0", b.x_near).set("x1", b.x_near + b.width)
+                   .set("z0", scene.ground.z).set("z1", scene.ground.z + b.height));
+  for (const auto& p : scene.ground.patches) patches.push(tk::Json::object().set("x_begin", p.x_begin).set("mu", p.mu));
+  tk::Json plant = tk::Json::object();
+  plant.set("name", cfg.name);
+  plant.set("scene", tk::Json::object()
+                         .set("ground_z", scene.ground_on ? tk::Json(scene.ground.z) : tk::Json())
+                         .set("boxes", std::move(boxes))
+                         .set("patches", std::move(patches)));
+  std::ofstream(dir + "/plant.json") << plant.dump(2) << "\n";
 }
 
 // What the runtime itself measured, commanded and concluded, on any driver (a bus or the
-// simulated plant): runtime_signals.svg, observer.svg (the residuals against their threshold,
-// the events marked) and cycles.csv (every recorded row).
-void write_runtime_plots(const std::string& dir, const SampleRecorder& rec,
-                         const runtime::EventLog& log, const std::vector<runtime::RunEvent>& events,
-                         double r_threshold, std::ostream& out) {
+// simulated plant): cycles.csv (every recorded row) and runtime.json (the events to mark, the
+// residual threshold) for the figures runtime_signals.png and observer.png.
+void write_runtime_data(const std::string& dir, const SampleRecorder& rec,
+                        const runtime::EventLog& log, const std::vector<runtime::RunEvent>& events,
+                        double r_threshold, std::ostream& out) {
   namespace tk = toolkit;
   std::filesystem::create_directories(dir);
+  std::filesystem::remove(dir + "/body.csv");  // an earlier run's plant: written again below if simulated
+  std::filesystem::remove(dir + "/plant.json");
   const int J = rec.joints;
   const std::size_t n = rec.rows.size();
   const std::string csv_path = dir + "/cycles.csv";
@@ -217,51 +215,28 @@ void write_runtime_plots(const std::string& dir, const SampleRecorder& rec,
     }
     if (!csv) throw std::runtime_error("--plots " + dir + ": write failed: " + csv_path);
   }
-  if (n < 2 || J == 0) {
-    out << "plots: " << csv_path << " (" << n << " rows: too few to plot)\n";
-    return;
-  }
-  std::vector<double> ts(n), wake(n), read(n);
-  std::vector<tk::Signal> alpha, tau, u, res;
-  for (int j = 0; j < J; ++j) {
-    alpha.push_back({.label = "α_" + std::to_string(j + 1)});
-    tau.push_back({.label = "τ_s," + std::to_string(j + 1)});
-    u.push_back({.label = "u_" + std::to_string(j + 1)});
-    res.push_back({.label = "r_" + std::to_string(j + 1)});
-  }
-  for (std::size_t i = 0; i < n; ++i) {
-    ts[i] = static_cast<double>(rec.rows[i].t_ns - log.t0_ns()) * 1e-9;
-    wake[i] = rec.rows[i].wake_us;
-    read[i] = rec.rows[i].read_us;
-    for (int j = 0; j < J; ++j) {
-      const auto k = static_cast<std::size_t>(j);
-      alpha[k].y.push_back(rec.at(i, j, 3));
-      tau[k].y.push_back(rec.at(i, j, 4));
-      u[k].y.push_back(rec.at(i, j, 5));
-      res[k].y.push_back(rec.at(i, j, 6));
-    }
-  }
-  tk::TimeSeriesOptions to;
+  tk::Json marks = tk::Json::array();
   for (const runtime::RunEvent& e : events)
     if (e.listed && e.sample.fault != runtime::FaultClass::kNone)
-      to.marks.push_back({.t = log.seconds(e.sample),
-                          .label = std::string(runtime::to_string(e.sample.fault)) + " j" +
-                                   std::to_string(e.sample.joint + 1)});
-  to.title = "Runtime: joints, torques, loop timing";
-  std::vector<tk::SignalPanel> panels{
-      {.ylabel = "α [rad] (measured)", .signals = alpha},
-      {.ylabel = "SEA torque [N·m]", .signals = tau},
-      {.ylabel = "command u [N·m]", .signals = u},
-      {.ylabel = "wake latency [µs]", .signals = {{.label = "latency", .y = wake}}}};
-  const auto s1 = tk::stacked_time_series(ts, panels, to).save(dir + "/runtime_signals.svg");
-  tk::SignalPanel rp{.ylabel = "momentum residual r [N·m]", .signals = res};
-  if (std::isfinite(r_threshold)) rp.hlines = {-r_threshold, -0.5 * r_threshold, 0.5 * r_threshold, r_threshold};
-  to.title = "Observer: residuals, ± the threshold and its half (the persistence level)";
-  std::vector<tk::SignalPanel> op{rp, {.ylabel = "read [µs]", .signals = {{.label = "read", .y = read}}}};
-  const auto s2 = tk::stacked_time_series(ts, op, to).save(dir + "/observer.svg");
-  out << "plots: " << dir << "/{runtime_signals,observer}.svg" << (s1.png ? " (+ .png)" : "") << ", "
-      << csv_path << " (" << n << " rows" << (rec.truncated ? ", truncated" : "") << ")\n";
-  (void)s2;
+      marks.push(tk::Json::object()
+                     .set("t", log.seconds(e.sample))
+                     .set("label", std::string(runtime::to_string(e.sample.fault)) + " j" +
+                                       std::to_string(e.sample.joint + 1)));
+  tk::Json info = tk::Json::object();
+  info.set("residual_threshold", std::isfinite(r_threshold) ? tk::Json(r_threshold) : tk::Json());
+  info.set("marks", std::move(marks));
+  std::ofstream(dir + "/runtime.json") << info.dump(2) << "\n";
+  out << "plot data: " << csv_path << " (" << n << " rows" << (rec.truncated ? ", truncated" : "") << ")\n";
+}
+
+// Draws the figures of the folder's data (tools/figures/runtime.py) and says what it wrote, or
+// why it wrote nothing.
+void draw_run_figures(const std::string& dir, std::ostream& out) {
+  const toolkit::FigureOutcome r = toolkit::draw_figures("runtime.py", {dir});
+  if (r.status == toolkit::FigureOutcome::Status::drawn)
+    out << "plots: " << r.message << "\n";
+  else  // loudly, also when the run prints nothing: the data are there, the figures are not
+    std::cerr << "pedalwave_runtime: --plots " << dir << ": " << r.message << "\n";
 }
 
 }  // namespace
@@ -648,8 +623,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
     out << "report: " << opt.report_json << "\n";
   }
   if (!opt.plots_dir.empty())
-    write_runtime_plots(opt.plots_dir, recorder, res.event_log, res.events, observer_threshold(cfg),
-                        out);
+    write_runtime_data(opt.plots_dir, recorder, res.event_log, res.events, observer_threshold(cfg), out);
   if (sim) {
     sim->stop();
     const drivers::SimRecording& rec = sim->recording();
@@ -698,8 +672,9 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
                     100 * res.forward_speed, rec.t[i0], rec.t[i1]);
       out << line;
     }
-    if (!opt.plots_dir.empty()) write_plant_plots(opt.plots_dir, *sim, cfg, out);
+    if (!opt.plots_dir.empty()) write_plant_data(opt.plots_dir, *sim, cfg);
   }
+  if (!opt.plots_dir.empty()) draw_run_figures(opt.plots_dir, out);
   return res;
 }
 

@@ -43,7 +43,7 @@ int main(int argc, char** argv) {
   bool check_only = false, check_config = false, no_telemetry = false;
   cli.add_option("-c,--config", config_path, "daemon configuration (YAML)")->required();
   cli.add_option("-d,--duration", duration, "override the run time [s] (0 = until a signal)");
-  cli.add_option("--plots", plots_dir, "write plots of the run into this folder: runtime_signals.svg, observer.svg, cycles.csv (any driver); snake_shapes, paths, speed (simulated plant)");
+  cli.add_option("--plots", plots_dir, "write the run's data into this folder (cycles.csv, runtime.json; body.csv, plant.json for the simulated plant) and its figures (tools/figures/runtime.py, matplotlib): runtime_signals.png, observer.png (any driver); snake_shapes, paths, speed .png (simulated plant)");
   cli.add_option("--report-json", report_json,
                  "write a JSON report of the run (events, exit, loop timing, driver counters) here");
   cli.add_option("--state-dir", state_dir,

@@ -4,7 +4,7 @@
 set -euo pipefail
 pkgs=(cmake ninja-build g++ clang libeigen3-dev libspdlog-dev libyaml-cpp-dev libcli11-dev
       libgtest-dev libgmock-dev libbenchmark-dev cyclonedds-dev cyclonedds-tools rt-tests
-      librsvg2-bin can-utils libclang-rt-14-dev
+      can-utils libclang-rt-14-dev
       libzstd-dev liblz4-dev pkg-config  # pedalwave::mcap (MCAP chunk compression)
       slurm-wlm munge  # the campaign layer's Slurm tests (tests/tools/campaign: a one-node cluster)
       dpkg-dev file adduser systemd)  # the Debian package: dpkg-shlibdeps, CPack's ELF check,
@@ -27,6 +27,8 @@ pkgs+=(graphviz)
 # npm from Debian, unless a node with npm is already on PATH (e.g. NodeSource's nodejs, which
 # bundles npm and conflicts with Debian's npm package).
 command -v npm >/dev/null 2>&1 && command -v node >/dev/null 2>&1 || pkgs+=(nodejs npm)
+# The tools' figures: tools/figures/*.py run by /usr/bin/python3 with matplotlib.
+pkgs+=(python3-matplotlib python3-numpy)
 pkgs+=("$@")
 missing=()
 for p in "${pkgs[@]}"; do

@@ -3,8 +3,9 @@
 //   pedalwave_sim SCENE.yaml [--duration s] [--controller none|gait] [--k_c X] [--rate Hz]
 //                 [--integrator NAME] [--h s] [--rtol x] [--out DIR] [--every s] [--no-plots]
 //
-// Writes DIR/trajectory.csv, DIR/summary.txt (also printed) and the figures DIR/{shapes, paths,
-// torques,speed}.{svg,png}. Exit codes: 0 done; 2 bad input (scene file, YAML, option value; one
+// Writes DIR/trajectory.csv, DIR/summary.txt (also printed), the figures' data DIR/body.csv and
+// DIR/figures.json, and the figures DIR/{shapes,gait_cycle,paths,torques,speed}.png (drawn by
+// tools/figures/simulate.py; skipped with a message without matplotlib). Exit codes: 0 done; 2 bad input (scene file, YAML, option value; one
 // error line on stderr); 3 the plant failed (non-finite state / singular mass matrix): the rows up
 // to the failure are written, the summary says why; 1 any other error (e.g. cannot write DIR).
 #include <CLI/CLI.hpp>
@@ -39,7 +40,7 @@ int main(int argc, char** argv) {
   namespace model = pedalwave::model;
 
   CLI::App app{"pedalwave_sim: simulate a scene (the runtime's gait controller against the plant "
-               "model, in lockstep) and write trajectory.csv, summary.txt and plots"};
+               "model, in lockstep) and write trajectory.csv, summary.txt and figures (tools/figures/simulate.py)"};
   std::string scene_path;
   std::optional<double> duration, h, rtol;
   std::optional<std::string> integrator;
@@ -130,9 +131,14 @@ int main(int argc, char** argv) {
       if (!f) throw std::runtime_error("cannot write " + (cfg.out_dir / "summary.txt").string());
     }
     if (!quiet) std::cout << summary;
-    if (cfg.plots)
-      for (const std::string& line : sim::write_plots(cfg, r))
-        if (!quiet) std::cout << "figure:           " << line << '\n';
+    if (cfg.plots) {
+      const auto figures = sim::write_plots(cfg, r);
+      if (figures.status == pedalwave::toolkit::FigureOutcome::Status::drawn) {
+        if (!quiet) std::cout << "figures:          " << figures.message << '\n';
+      } else {  // loudly, also with --quiet: the data are written, the figures are not
+        std::cerr << "pedalwave_sim: " << figures.message << '\n';
+      }
+    }
     if (failed) {
       std::cerr << "pedalwave_sim: the plant failed at t = " << r.t_end << " s: "
                 << model::to_string(r.status) << " (rows up to then are in " << r.csv.string()

@@ -12,6 +12,7 @@
 #include "pedalwave/model/scene.hpp"
 #include "pedalwave/simloop/closed_loop.hpp"
 #include "pedalwave/simloop/stair_events.hpp"
+#include "pedalwave/toolkit/figures.hpp"
 
 namespace pedalwave::simulate {
 
@@ -82,9 +83,11 @@ RunResult run(const RunConfig& c);
 // The summary text (also written to out_dir/summary.txt by the CLI).
 std::string summary_text(const RunConfig& c, const RunResult& r);
 
-// Figures: shapes (snake snapshots over time with ground, boxes, μ patches), paths (head tip and
-// COM), torques (SEA and commanded, one panel per joint), speed (forward speed over time). Each
-// as .svg and, when rsvg-convert exists, .png. Returns one line per file (or why only the SVG).
-std::vector<std::string> write_plots(const RunConfig& c, const RunResult& r);
+// Figures: writes body.csv (every sample's body points, COM and head tip) and figures.json (title,
+// gait period, average speed, the scene's ground, boxes and μ patches) into out_dir and runs
+// tools/figures/simulate.py on them: shapes (snake snapshots over time), gait_cycle, paths (head
+// tip and COM), torques (SEA and commanded, one panel per joint), speed (.png). Returns what was
+// drawn, or why not (no matplotlib: the data stay).
+toolkit::FigureOutcome write_plots(const RunConfig& c, const RunResult& r);
 
 }  // namespace pedalwave::simulate

@@ -43,6 +43,7 @@
 #include "pedalwave/config/shipped.hpp"
 #include "pedalwave/toolkit/cpu_load.hpp"
 #include "pedalwave/toolkit/csv.hpp"
+#include "pedalwave/toolkit/figures.hpp"
 #include "pedalwave/toolkit/json.hpp"
 #include "soak.hpp"
 
@@ -215,11 +216,6 @@ std::string now_iso() {
   char buf[32];
   std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
   return buf;
-}
-
-bool have_matplotlib() {
-  if (::access("/usr/bin/python3", X_OK) != 0) return false;
-  return std::system("/usr/bin/python3 -c 'import matplotlib' >/dev/null 2>&1") == 0;
 }
 
 struct Options {
@@ -447,19 +443,9 @@ int run(const Options& opt) {
   std::printf("\nwritten: %s, %s, %s, %s\n", (out / "soak.json").c_str(), (out / "memory.csv").c_str(), rt_log.c_str(),
               vr_log.c_str());
   std::fflush(stdout);  // before the script's output
-  if (!opt.no_plot) {
-    // The source tree's script, else the installed one (<prefix>/share/pedalwave/scripts).
-    fs::path script = PEDALWAVE_SOAK_PLOT_SCRIPT;
-    if (!fs::is_regular_file(script)) script = PEDALWAVE_INSTALLED_SOAK_PLOT_SCRIPT;
-    if (!fs::is_regular_file(script)) {
-      std::printf("plot skipped: %s not found\n", script.c_str());
-    } else if (!have_matplotlib()) {
-      std::printf("plot skipped: /usr/bin/python3 with matplotlib not available (apt-get install python3-matplotlib)\n");
-    } else {
-      const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + (out / "soak.json").string() + "' '" +
-                              (out / "soak.png").string() + "'";
-      if (std::system(cmd.c_str()) != 0) std::printf("plot failed: %s\n", cmd.c_str());
-    }
+  if (!opt.no_plot) {  // tools/figures/soak.py: the timing histograms and the memory over time
+    const tk::FigureOutcome r = tk::draw_figures("soak.py", {(out / "soak.json").string(), (out / "soak.png").string()});
+    std::fprintf(r.status == tk::FigureOutcome::Status::drawn ? stdout : stderr, "%s\n", r.message.c_str());
   }
   std::fflush(stdout);
   return verdict.code;

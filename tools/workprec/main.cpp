@@ -31,7 +31,7 @@
 #include "pedalwave/config/shipped.hpp"
 #include "pedalwave/model/stability.hpp"
 #include "pedalwave/toolkit/csv.hpp"
-#include "pedalwave/toolkit/plots.hpp"
+#include "pedalwave/toolkit/figures.hpp"
 #include "pedalwave/toolkit/progress.hpp"
 #include "pedalwave/toolkit/table.hpp"
 #include "study.hpp"
@@ -262,7 +262,6 @@ int work_precision(const Options& opt) {
 
     tk::Table t({"method", "setting", "status", "CPU [s]", "wall [s]", "evaluations",
                  "COM err final [m]", "COM err max [m]", "α err max [rad]"});
-    std::map<model::Method, tk::WorkPrecisionSeries> series_com, series_alpha;
     const Job* cheapest = nullptr;
     const Job* euler4 = nullptr;
     for (const Job& j : runs) {
@@ -280,13 +279,6 @@ int work_precision(const Options& opt) {
                  ok ? "ok" : std::string(to_string(r.status)) + " at " + num(r.t_fail, 3) + " s",
                  num(r.cpu_s), num(r.wall_s), std::to_string(r.evaluations), ok ? num(e.com_final) : "—",
                  ok ? num(e.com_max) : "—", ok ? num(e.alpha_max) : "—"});
-      auto& sc_com = series_com[m];
-      auto& sc_alpha = series_alpha[m];
-      sc_com.label = sc_alpha.label = method_label(m);
-      sc_com.cost.push_back(ok ? r.cpu_s : NAN);
-      sc_com.error.push_back(ok ? e.com_max : NAN);
-      sc_alpha.cost.push_back(ok ? r.cpu_s : NAN);
-      sc_alpha.error.push_back(ok ? e.alpha_max : NAN);
       if (ok && e.com_max <= 1e-3 && (!cheapest || r.cpu_s < cheapest->result.cpu_s)) cheapest = &j;
       if (m == model::Method::kExplicitEuler && std::abs(j.spec.integ.h - 1e-4) < 1e-12) euler4 = &j;
     }
@@ -321,25 +313,6 @@ int work_precision(const Options& opt) {
     std::ofstream(fs::path(opt.out) / (sc.name + ".md")) << md.str();
     summary << md.str();
 
-    // Figures.
-    for (int which = 0; which < 2; ++which) {
-      std::vector<tk::WorkPrecisionSeries> ser;
-      for (auto& [m, x] : which == 0 ? series_com : series_alpha) ser.push_back(x);
-      tk::WorkPrecisionOptions wo;
-      wo.title = sc.name + (which == 0 ? ": max COM error vs CPU time" : ": max joint-angle error vs CPU time") +
-                 " (unstable runs omitted)";
-      wo.xlabel = "CPU time of the run [s] (" + num(opt.duration, 3) + " s simulated)";
-      wo.ylabel = which == 0 ? "max COM position error [m]" : "max joint angle error [rad]";
-      if (which == 0) {
-        wo.tolerance = 1e-3;
-        wo.tolerance_label = "1 mm";
-      }
-      tk::Figure fig = tk::work_precision_plot(ser, wo);
-      const tk::SaveResult sr =
-          fig.save(fs::path(opt.out) / (sc.name + (which == 0 ? "_com.svg" : "_alpha.svg")));
-      if (!opt.quiet) std::cerr << sr.note << '\n';
-    }
-
     // Summary row.
     std::string ch = "none", cc = "—", ce = "—", ec = "—", ee = "—", ratio = "—";
     if (cheapest) {
@@ -366,7 +339,10 @@ int work_precision(const Options& opt) {
   summary << "## Summary\n\n" << best.to_markdown();
   std::ofstream(fs::path(opt.out) / "summary.md") << summary.str();
   if (!opt.quiet) std::cout << best.to_text();
-  std::cout << "wrote " << (fs::path(opt.out) / "summary.md").string() << ", work_precision.csv and figures\n";
+  std::cout << "wrote " << (fs::path(opt.out) / "summary.md").string() << ", work_precision.csv\n";
+  // The work-precision figures from the CSV (tools/figures/workprec.py): <scene>_com.png, _alpha.png.
+  const tk::FigureOutcome figures = tk::draw_figures("workprec.py", {opt.out});
+  (figures.status == tk::FigureOutcome::Status::drawn ? std::cout : std::cerr) << figures.message << '\n';
   return 0;
 }
 

@@ -206,3 +206,29 @@ TEST(CsvReader, EmptyTableHasColumnsButNoRows) {
   EXPECT_EQ(t.rows(), 0u);
   EXPECT_TRUE(t.column("a").empty());
 }
+
+// A recording of another program (pedalwave_monitor --record): quoted text with commas, text
+// cells, a last line cut short while it was written.
+TEST(CsvTable, ReadsARecordingLenientlyWhenAsked) {
+  const std::string text =
+      "seq,fault_names,x\n"
+      "1,\"stale, nan\",0.5\n"
+      "2,\"say \"\"hi\"\"\",1.5\n"
+      "3,0.1\n";
+  EXPECT_THROW((void)pedalwave::toolkit::CsvTable::parse(text, "rec.csv"), pedalwave::toolkit::CsvError);
+  const auto t = pedalwave::toolkit::CsvTable::parse(text, "rec.csv", {.text_as_nan = true, .skip_ragged = true});
+  ASSERT_EQ(t.rows(), 2u);
+  EXPECT_EQ(t.column("x")[0], 0.5);  // the quoted comma did not split the row
+  EXPECT_EQ(t.column("x")[1], 1.5);
+  EXPECT_TRUE(std::isnan(t.column("fault_names")[0]));
+  ASSERT_EQ(t.skipped().size(), 1u);
+  EXPECT_EQ(t.skipped()[0], "rec.csv:4: row has 2 fields but the header names 3 columns: skipped");
+  // Text alone is still an error naming the cell when only ragged rows are allowed.
+  try {
+    (void)pedalwave::toolkit::CsvTable::parse(text, "rec.csv", {.skip_ragged = true});
+    FAIL() << "text accepted";
+  } catch (const pedalwave::toolkit::CsvError& e) {
+    EXPECT_NE(std::string(e.what()).find("rec.csv:2: column 2 ('fault_names'): 'stale, nan' is not a number"),
+              std::string::npos) << e.what();
+  }
+}

@@ -123,3 +123,10 @@ TEST(Progress, AutomaticStyleOnANonTerminalStreamUsesLines) {
   EXPECT_EQ(os.str().find('\r'), std::string::npos);
   EXPECT_EQ(lines_of(os.str()).size(), 2u);
 }
+
+TEST(Progress, FormatsDurationsForPeople) {
+  EXPECT_EQ(pedalwave::toolkit::format_duration(0.35), "350 ms");
+  EXPECT_EQ(pedalwave::toolkit::format_duration(12.34), "12.3 s");
+  EXPECT_EQ(pedalwave::toolkit::format_duration(125.0), "2 min 05 s");
+  EXPECT_EQ(pedalwave::toolkit::format_duration(3720.0), "1 h 02 min");
+}

@@ -3,6 +3,8 @@
 #include <charconv>
 #include <cstdlib>
 #include <cmath>
+#include <deque>
+#include <limits>
 #include <set>
 #include <sstream>
 #include <system_error>
@@ -124,23 +126,42 @@ bool parse_number(std::string_view f, double& out) {
   return r.ec == std::errc() && r.ptr == f.data() + f.size();
 }
 
-void split(std::string_view line, std::vector<std::string_view>& fields) {
+// Splits at the commas outside quotes; a quoted field loses its quotes and "" becomes ".
+// `storage` keeps the unquoted text the views of such fields point into (a deque: appending
+// does not move its strings).
+void split(std::string_view line, std::vector<std::string_view>& fields, std::deque<std::string>& storage) {
   fields.clear();
+  storage.clear();
   std::size_t start = 0;
   while (true) {
-    const std::size_t c = line.find(',', start);
-    fields.push_back(trim(line.substr(start, c == std::string_view::npos ? std::string_view::npos : c - start)));
-    if (c == std::string_view::npos) break;
+    std::size_t c = start;
+    bool quoted = false;
+    while (c < line.size() && (quoted || line[c] != ',')) {
+      if (line[c] == '"') quoted = !quoted;
+      ++c;
+    }
+    std::string_view f = trim(line.substr(start, c - start));
+    if (f.size() >= 2 && f.front() == '"' && f.back() == '"') {
+      std::string& u = storage.emplace_back();
+      for (std::size_t i = 1; i + 1 < f.size(); ++i) {
+        u += f[i];
+        if (f[i] == '"' && i + 2 < f.size() && f[i + 1] == '"') ++i;
+      }
+      f = u;
+    }
+    fields.push_back(f);
+    if (c >= line.size()) break;
     start = c + 1;
   }
 }
 
 }  // namespace
 
-CsvTable CsvTable::parse(std::string_view text, std::string source) {
+CsvTable CsvTable::parse(std::string_view text, std::string source, ReadOptions options) {
   CsvTable t;
   t.source_ = std::move(source);
   std::vector<std::string_view> fields;
+  std::deque<std::string> storage;
   std::size_t line_no = 0;
   std::size_t pos = 0;
   bool have_header = false;
@@ -158,12 +179,11 @@ CsvTable CsvTable::parse(std::string_view text, std::string source) {
       continue;
     }
     const std::string where = t.source_ + ":" + std::to_string(line_no);
-    split(tl, fields);
+    split(tl, fields, storage);
     if (!have_header) {
       std::set<std::string_view> seen;
       for (std::size_t i = 0; i < fields.size(); ++i) {
-        std::string_view n = fields[i];
-        if (n.size() >= 2 && n.front() == '"' && n.back() == '"') n = n.substr(1, n.size() - 2);
+        const std::string_view n = fields[i];
         if (n.empty()) throw CsvError(where + ": header column " + std::to_string(i + 1) + " has an empty name");
         if (!seen.insert(n).second) {
           throw CsvError(where + ": header column " + std::to_string(i + 1) + " ('" + std::string(n) + "') is named twice");
@@ -175,12 +195,19 @@ CsvTable CsvTable::parse(std::string_view text, std::string source) {
       continue;
     }
     if (fields.size() != t.names_.size()) {
-      throw CsvError(where + ": row has " + std::to_string(fields.size()) + " fields but the header names " +
-                     std::to_string(t.names_.size()) + " columns");
+      const std::string what = where + ": row has " + std::to_string(fields.size()) +
+                               " fields but the header names " + std::to_string(t.names_.size()) + " columns";
+      if (!options.skip_ragged) throw CsvError(what);
+      t.skipped_.push_back(what + ": skipped");
+      continue;
     }
     for (std::size_t i = 0; i < fields.size(); ++i) {
       double v = 0.0;
       if (!parse_number(fields[i], v)) {
+        if (options.text_as_nan) {
+          t.columns_[i].push_back(std::numeric_limits<double>::quiet_NaN());
+          continue;
+        }
         throw CsvError(where + ": column " + std::to_string(i + 1) + " ('" + t.names_[i] + "'): '" +
                        std::string(fields[i]) + "' is not a number");
       }
@@ -191,13 +218,13 @@ CsvTable CsvTable::parse(std::string_view text, std::string source) {
   return t;
 }
 
-CsvTable CsvTable::read(const std::filesystem::path& path) {
+CsvTable CsvTable::read(const std::filesystem::path& path, ReadOptions options) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw CsvError(path.string() + ": cannot open for reading");
   std::ostringstream ss;
   ss << f.rdbuf();
   if (f.bad()) throw CsvError(path.string() + ": read error");
-  return parse(ss.str(), path.string());
+  return parse(ss.str(), path.string(), options);
 }
 
 bool CsvTable::has(std::string_view name) const {

@@ -7,9 +7,26 @@
 #include <cstdio>
 #include <iostream>
 
-#include "pedalwave/toolkit/ticks.hpp"
 
 namespace pedalwave::toolkit {
+
+std::string format_duration(double seconds) {
+  if (!std::isfinite(seconds)) return "--";
+  if (seconds < 0.0) seconds = 0.0;
+  char buf[64];
+  if (seconds < 1.0) {
+    std::snprintf(buf, sizeof buf, "%.0f ms", seconds * 1e3);
+  } else if (seconds < 60.0) {
+    std::snprintf(buf, sizeof buf, "%.1f s", seconds);
+  } else if (seconds < 3600.0) {
+    const auto total = static_cast<long>(std::lround(seconds));
+    std::snprintf(buf, sizeof buf, "%ld min %02ld s", total / 60, total % 60);
+  } else {
+    const auto total_min = static_cast<long>(std::lround(seconds / 60.0));
+    std::snprintf(buf, sizeof buf, "%ld h %02ld min", total_min / 60, total_min % 60);
+  }
+  return buf;
+}
 
 namespace {
 std::string rate_text(double per_s) {

@@ -68,9 +68,22 @@ class CsvTable {
   // Reads a file. Throws CsvError naming the file (and the line and column) when it cannot be
   // opened, has no header, a header name repeats, a row has the wrong number of fields, or a
   // field is not a number.
-  [[nodiscard]] static CsvTable read(const std::filesystem::path& path);
+  // How strict the reader is. The defaults suit the tools' own numeric files; a recording of
+  // another program (pedalwave_monitor --record: text cells, a last line cut short while it was
+  // written) is read with both on.
+  struct ReadOptions {
+    bool text_as_nan = false;  // a cell that is not a number reads as NaN instead of an error
+    bool skip_ragged = false;  // a row with the wrong number of fields is skipped (and noted in
+                               // skipped()) instead of an error
+  };
+  // Fields are separated by ',' and may be quoted ("a, b" is one field; "" inside is a quote).
+  [[nodiscard]] static CsvTable read(const std::filesystem::path& path, ReadOptions options);
+  [[nodiscard]] static CsvTable read(const std::filesystem::path& path) { return read(path, ReadOptions{}); }
   // Same from text; `source` names it in errors.
-  [[nodiscard]] static CsvTable parse(std::string_view text, std::string source = "<text>");
+  [[nodiscard]] static CsvTable parse(std::string_view text, std::string source, ReadOptions options);
+  [[nodiscard]] static CsvTable parse(std::string_view text, std::string source = "<text>") {
+    return parse(text, std::move(source), ReadOptions{});
+  }
 
   [[nodiscard]] const std::vector<std::string>& names() const { return names_; }
   [[nodiscard]] std::size_t rows() const { return columns_.empty() ? 0 : columns_.front().size(); }
@@ -82,12 +95,16 @@ class CsvTable {
   // Comment lines (without the leading '#' and one following space), in order.
   [[nodiscard]] const std::vector<std::string>& comments() const { return comments_; }
   [[nodiscard]] const std::string& source() const { return source_; }
+  // One line per row skipped by ReadOptions::skip_ragged ("<source>:<line>: row has 3 fields but
+  // the header names 30 columns: skipped").
+  [[nodiscard]] const std::vector<std::string>& skipped() const { return skipped_; }
 
  private:
   std::string source_;
   std::vector<std::string> names_;
   std::vector<std::vector<double>> columns_;
   std::vector<std::string> comments_;
+  std::vector<std::string> skipped_;
 };
 
 }  // namespace pedalwave::toolkit

@@ -14,6 +14,9 @@
 
 namespace pedalwave::toolkit {
 
+// A duration for people: "350 ms", "12.3 s", "2 min 05 s", "1 h 02 min"; "--" when not finite.
+[[nodiscard]] std::string format_duration(double seconds);
+
 class Progress {
  public:
   enum class Style {

@@ -3,26 +3,17 @@
 report (wake latency, read, observe, control; log count) and the memory of the runtime and the
 virtual robot over time (VmRSS, VmHWM).
 
-    /usr/bin/python3 tools/soak/plot_soak.py out/soak/soak.json out/soak/soak.png
+    /usr/bin/python3 tools/figures/soak.py out/soak/soak.json out/soak/soak.png
 
-Skips with a message (exit 0) when matplotlib is not installed."""
-import json
-import sys
-
-try:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-except ImportError:
-    print("plot_soak.py: matplotlib is not installed (apt-get install python3-matplotlib): no plot")
-    sys.exit(0)
+Without matplotlib pwfig says so and exits 3 (pedalwave_soak: "figures skipped")."""
+import pwfig
+from pwfig import plt
 
 STAGES = ["wake", "read", "observe", "control"]
 
 
 def main(soak_json, png):
-    with open(soak_json) as f:
-        soak = json.load(f)
+    soak = pwfig.read_json(soak_json)
     report = soak.get("report") or {}
     timing = report.get("timing_us") or {}
     stages = [s for s in STAGES if (timing.get(s) or {}).get("bins")]
@@ -78,12 +69,14 @@ def main(soak_json, png):
     fig.suptitle("soak %s s, load %s × %s, telemetry %s" % (settings.get("duration_s"), load.get("children"),
                                                           load.get("duty"), settings.get("telemetry")), fontsize=10)
     fig.tight_layout()
-    fig.savefig(png, dpi=110)
-    print("plot_soak.py: wrote", png)
+    pwfig.save(fig, png)
+
+
+def run(args):
+    if len(args) != 2:
+        raise pwfig.DataError("usage: soak.py SOAK_JSON PNG")
+    main(args[0], args[1])
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
-        print("usage: plot_soak.py SOAK_JSON PNG", file=sys.stderr)
-        sys.exit(2)
-    main(sys.argv[1], sys.argv[2])
+    pwfig.main(run)

@@ -306,7 +306,7 @@ void Plant::contact_forces(const VectorXd& q, const VectorXd& v, Eigen::Ref<Vect
 //            link, as the segment's corner test; its end caps included). Every depth is continuous;
 //            where a sphere and a link both see a corner (near a COM, a joint) the corner acts
 //            through both (stiffer there, up to 3 k at a joint, same statics). r → 0 gives the
-//            segment's contacts (tests/model/test_shapes.cpp).
+//            segment's contacts (tests/model/shapes_test.cpp).
 //   box:     the 4 corners A ± (h_m/2) ν, B ± (h_m/2) ν of each link against the ground and the
 //            boxes' faces; a box's top corner inside a link's rectangle is pushed out through the
 //            nearer long face (the chain's two end faces too).

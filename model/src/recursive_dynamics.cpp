@@ -1,6 +1,6 @@
 // O(N) forward dynamics: Featherstone's articulated-body algorithm (ABA) for the planar chain with a
 // floating base, the SEA rotors as geared bodies. Same equations as the dense solver
-// (model-spec.md §4, §5; dynamics.hpp), the same q̈ to rounding (tests/model/test_recursive.cpp).
+// (model-spec.md §4, §5; dynamics.hpp), the same q̈ to rounding (tests/model/recursive_test.cpp).
 //
 // Why this and not a structured solve of M: in q the body block Tᵀ Mz T is dense (p, the mean of
 // the link COMs, couples every link with every other), so an exact structured solve needs the

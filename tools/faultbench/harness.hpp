@@ -1,4 +1,4 @@
-// The fault-injection closed loop shared by tests/observer and pedalwave_faultbench: the scene's
+// The fault-injection closed loop shared by tests/runtime/observer and pedalwave_faultbench: the scene's
 // simulated plant (SimDriver, lockstep) wrapped by the FaultInjectingDriver, the runtime's gait
 // controller (module-side PD, adaptive gain k_c) and the observer, called in the runtime's order
 //   read → observe(fb, last command) → control → write

@@ -1,6 +1,6 @@
 // pedalwave_mcap_demo: writes an MCAP recording (ros2 profile: ros2msg schemas, CDR messages) of
 // synthetic snake data with pedalwave::mcap, to open in Foxglove or `ros2 bag`, and to test the
-// writer against independent readers (tests/mcap/interop).
+// writer against independent readers (tests/runtime/telemetry/mcap/interop).
 //
 //   pedalwave_mcap_demo --out demo.mcap [--compression zstd|lz4|none] [--chunk-size BYTES]
 //                       [--duration S] [--start-ns NS] [--qos-style names|integers] [--expect FILE.jsonl]

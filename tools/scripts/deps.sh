@@ -17,7 +17,7 @@ pkgs+=(libwebsockets-dev nlohmann-json3-dev)
 # DDS Security: the keystore checks (libssl-dev) and tools/scripts/keystore.sh (openssl); the
 # Cyclone security plugins come with libddsc0debian.
 pkgs+=(libssl-dev openssl)
-# The sros2 interop test (tests/telemetry/sros2): sros2's keystore API runs on these.
+# The sros2 interop test (tests/runtime/telemetry/sros2): sros2's keystore API runs on these.
 pkgs+=(python3-cryptography python3-lxml)
 # pedalwave_identify: NLopt's derivative-free optimizers (BOBYQA, Subplex).
 pkgs+=(libnlopt-dev)

@@ -1,4 +1,4 @@
-// The soak tool's pieces that do not start processes (tested in tests/soak/): memory samples from
+// The soak tool's pieces that do not start processes (tested in tests/tools/soak/): memory samples from
 // /proc/<pid>/status, the runtime configuration written for a soak run, the reading of the
 // runtime's report.json, the verdict and the printed summary.
 #pragma once

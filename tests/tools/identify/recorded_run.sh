@@ -21,7 +21,7 @@ cfgdir=$(realpath "$4")
 mkdir -p "$5"
 work=$(realpath "$5")
 
-# A DDS domain of our own (the lease scheme of tests/telemetry/dds_test_support.hpp).
+# A DDS domain of our own (the lease scheme of tests/runtime/telemetry/dds_test_support.hpp).
 domain=""
 for id in $(seq 100 230); do
   exec {lock}>"/tmp/pedalwave-dds-domain-$id.lock"

@@ -20,7 +20,7 @@
 //   - Every exit (signal, request_stop, operator e-stop, fault with kSafeStop reaction, stale
 //     sensors, NaN, an exception from a stage or the driver, the cycle limit, a failing RT setup)
 //     ends with Driver::safe_stop() as the LAST call on the driver; the loop then returns.
-//   - Inside the loop nothing allocates, locks, logs or throws (tests/runtime/test_no_alloc.cpp).
+//   - Inside the loop nothing allocates, locks, logs or throws (tests/runtime/core/no_alloc_test.cpp).
 //   - One CycleSample per cycle goes into cycle_ring() (its overruns field counts the overruns of
 //     the cycles before it, ring_drops the samples dropped before it); every mode change, newly
 //     active fault class and operator-command outcome goes into event_ring() as an EventSample.

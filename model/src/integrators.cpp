@@ -47,6 +47,7 @@ void validate(const IntegratorOptions& o) {
     throw std::invalid_argument(os.str());
   };
   if (!(o.h > 0) || !std::isfinite(o.h)) bad("h", o.h, "step must be finite and > 0 [s]");
+  if (!(o.newton_tol >= 0) || !std::isfinite(o.newton_tol)) bad("newton_tol", o.newton_tol, "must be finite and >= 0");
   if (o.newton_iterations < 0 || o.newton_iterations > 50)
     bad("newton_iterations", o.newton_iterations, "must be 0 … 50");
   if (!(o.theta >= 0.5 && o.theta <= 1.0)) bad("theta", o.theta, "must be in [0.5, 1]");
@@ -57,8 +58,83 @@ void validate(const IntegratorOptions& o) {
   }
 }
 
+StructuredLU::StructuredLU(int n)
+    : A_(MatrixXd::Zero(n, n)), d_inv_(VectorXd::Zero(n)), piv_(Eigen::VectorXi::Zero(n)), n_(n) {}
+
+bool StructuredLU::factor(int nd) {
+  nd_ = nd;
+  const int n1 = n_ - nd;
+  MatrixXd& A = A_;
+  bool ok = true;
+  // The diagonal block: C = A12 A22⁻¹ in place of A12.
+  for (int j = 0; j < nd; ++j) {
+    const double d = A(n1 + j, n1 + j);
+    ok = ok && d != 0.0 && std::isfinite(d);
+    const double inv = 1.0 / d;
+    d_inv_(j) = inv;
+    for (int r = 0; r < n1; ++r) A(r, n1 + j) *= inv;
+  }
+  // The Schur complement S = A11 − C A21 (column by column; A21's zeros skipped).
+  for (int c = 0; c < n1; ++c)
+    for (int j = 0; j < nd; ++j) {
+      const double t = A(n1 + j, c);
+      if (t == 0.0) continue;
+      for (int r = 0; r < n1; ++r) A(r, c) -= A(r, n1 + j) * t;
+    }
+  // LU of S with partial pivoting, in place (unit lower L below the diagonal, U on and above).
+  for (int k = 0; k < n1; ++k) {
+    int p = k;
+    double big = std::abs(A(k, k));
+    for (int i = k + 1; i < n1; ++i)
+      if (std::abs(A(i, k)) > big) big = std::abs(A(i, k)), p = i;
+    piv_(k) = p;
+    if (!(big > 0.0) || !std::isfinite(big)) ok = false;
+    if (p != k)
+      for (int c = 0; c < n1; ++c) std::swap(A(k, c), A(p, c));
+    const double inv = 1.0 / A(k, k);
+    for (int i = k + 1; i < n1; ++i) A(i, k) *= inv;
+    for (int c = k + 1; c < n1; ++c) {
+      const double t = A(k, c);
+      if (t == 0.0) continue;
+      for (int i = k + 1; i < n1; ++i) A(i, c) -= A(i, k) * t;
+    }
+  }
+  return ok;
+}
+
+void StructuredLU::solve(Eigen::Ref<VectorXd> b) const {
+  const int n1 = n_ - nd_;
+  const MatrixXd& A = A_;
+  // b1 − A12 A22⁻¹ b2
+  for (int j = 0; j < nd_; ++j) {
+    const double t = b(n1 + j);
+    if (t != 0.0)
+      for (int r = 0; r < n1; ++r) b(r) -= A(r, n1 + j) * t;
+  }
+  // x1 = S⁻¹ (…): the row swaps, then L y = …, U x1 = y (column-oriented).
+  for (int k = 0; k < n1; ++k)
+    if (piv_(k) != k) std::swap(b(k), b(piv_(k)));
+  for (int k = 0; k < n1; ++k) {
+    const double t = b(k);
+    if (t != 0.0)
+      for (int i = k + 1; i < n1; ++i) b(i) -= A(i, k) * t;
+  }
+  for (int k = n1 - 1; k >= 0; --k) {
+    const double t = b(k) / A(k, k);
+    b(k) = t;
+    if (t != 0.0)
+      for (int i = 0; i < k; ++i) b(i) -= A(i, k) * t;
+  }
+  // x2 = A22⁻¹ (b2 − A21 x1)
+  for (int j = 0; j < nd_; ++j) {
+    double s = b(n1 + j);
+    for (int c = 0; c < n1; ++c) s -= A(n1 + j, c) * b(c);
+    b(n1 + j) = d_inv_(j) * s;
+  }
+}
+
 Integrator::Integrator(int nq, const IntegratorOptions& o)
-    : o_(o), nq_(nq), h_adapt_(o.h), lu_(nq) {
+    : o_(o), nq_(nq), h_adapt_(o.h), lu_(nq), slu_(nq) {
   validate(o_);
   const int n = 2 * nq;
   for (auto* v : {&y_, &y_new_, &tmp_}) *v = VectorXd::Zero(n);
@@ -163,13 +239,13 @@ StepStatus Integrator::step_implicit_contact(System& sys, double t, double h, Ve
   ++stats_.evaluations;
   if (!sys.implicit_terms(t, q, v, imp_)) return StepStatus::kEvalFailed;
   // Predictor: linearized at the start of the step.
-  A_ = imp_.M - a * imp_.dFdv - b * imp_.dFdq;
+  slu_.matrix() = imp_.M - a * imp_.dFdv - b * imp_.dFdq;
+  if (!slu_.factor(imp_.n_diag)) return StepStatus::kNonFinite;
   dv_.noalias() = imp_.dFdq * v;
   dv_ = h * (imp_.F + a * dv_);
-  lu_.compute(A_);
-  vtmp_ = lu_.solve(dv_);
-  v1_ = v + vtmp_;
-  const double tol = 1e-10;
+  slu_.solve(dv_);
+  v1_ = v + dv_;
+  const double tol = o_.newton_tol;
   imp1_.v_start = &v;
   bool converged = o_.newton_iterations == 0;
   for (int it = 0; it < o_.newton_iterations; ++it) {
@@ -183,12 +259,15 @@ StepStatus Integrator::step_implicit_contact(System& sys, double t, double h, Ve
     vtmp_ = v1_ - v;
     dv_.noalias() = imp_.M * vtmp_;
     dv_ -= ((1 - th) * h) * imp_.F + a * imp1_.F;
-    A_ = imp_.M - a * imp1_.dFdv - b * imp1_.dFdq;
-    lu_.compute(A_);
-    vtmp_.noalias() = lu_.solve(dv_);
-    v1_ -= vtmp_;
+    slu_.matrix() = imp_.M - a * imp1_.dFdv - b * imp1_.dFdq;
+    if (!slu_.factor(imp1_.n_diag)) {
+      imp1_.v_start = nullptr;
+      return StepStatus::kNonFinite;
+    }
+    slu_.solve(dv_);
+    v1_ -= dv_;
     if (!v1_.allFinite()) break;
-    if (vtmp_.lpNorm<Eigen::Infinity>() <= tol * (1.0 + v1_.lpNorm<Eigen::Infinity>())) {
+    if (dv_.lpNorm<Eigen::Infinity>() <= tol * (1.0 + v1_.lpNorm<Eigen::Infinity>())) {
       converged = true;
       break;
     }

@@ -625,6 +625,7 @@ bool Plant::implicit_terms(double, const VectorXd& q, const VectorXd& v, Implici
   compute_bias(m, data_, q);
   const int first = m.flexible() ? m.i_beta(0) : 0;
   out.M = data_.M;
+  out.n_diag = m.flexible() ? m.joints() : 0;  // the motor block of M, dFdq, dFdv is diagonal
   out.F = Q_ - data_.bias;
   out.F.segment(first, m.joints()) += u_;
   // Springs: F = −K_T q.

@@ -31,6 +31,15 @@ struct ImplicitTerms {
   // motor angles β, N−1 of them when the joints are flexible; 0: no structure known). The implicit
   // integrators then factor only the leading block's Schur complement (StructuredLU).
   int n_diag = 0;
+  // What the caller asks for (set by the caller, kept by implicit_terms): with_mass false leaves
+  // M untouched (implicit_contact's corrections use M at the step's start); dq_in_dv = s > 0 leaves
+  // dFdq untouched and writes ∂F/∂v + s ∂F/∂q into dFdv (all a caller needs that only forms
+  // M − θh (∂F/∂v + θh ∂F/∂q)).
+  // With dq_in_dv > 0 and dFdq_v sized nq, also dFdq_v = ∂F/∂q · v at the evaluated v (what the
+  // predictor's right-hand side needs of ∂F/∂q); left empty, it is not computed.
+  bool with_mass = true;
+  double dq_in_dv = 0.0;
+  VectorXd dFdq_v = VectorXd();
 };
 
 // LU solve of A x = b for an n×n A whose trailing nd×nd block A22 is diagonal (the motor block,
@@ -67,6 +76,7 @@ class System {
   // a = q̈ at (t, q, v); false if it cannot be evaluated (singular mass matrix).
   virtual bool acceleration(double t, const VectorXd& q, const VectorXd& v, VectorXd& a) = 0;
   // Fills out (already sized nq) for velocity-implicit schemes; false if unsupported/failed.
+  // Honours out's requests (with_mass, dq_in_dv, dFdq_v): implicit_contact relies on them.
   virtual bool implicit_terms(double t, const VectorXd& q, const VectorXd& v, ImplicitTerms& out) {
     (void)t, (void)q, (void)v, (void)out;
     return false;
@@ -162,7 +172,8 @@ class Integrator {
   VectorXd k_[7];
   StepStatus step_implicit_contact(System& sys, double t, double h, VectorXd& q, VectorXd& v);
 
-  ImplicitTerms imp_, imp1_;  // implicit_contact: at (q₀, v₀) and at the iterate (q₁, v₁)
+  ImplicitTerms imp_;         // implicit_velocity
+  ImplicitTerms ick_, imp1_;  // implicit_contact: at (q₀, v₀) and at the iterate (q₁, v₁)
   MatrixXd A_;
   VectorXd v1_, q1_;
   Eigen::PartialPivLU<MatrixXd> lu_;

@@ -106,7 +106,7 @@ enum class Method : std::uint8_t {
 // neglect is listed at Plant::implicit_terms). M is frozen at q₀.
 // The corrections stop as soon as one moves v₁ by at most newton_tol (1 + |v₁|∞) in the max norm
 // (default 1e-2, at most 3 corrections): on the shipped walking scenes at 1 ms most steps stop
-// after one correction (2.03–2.06 evaluations per step), the few where a contact or a friction
+// after one correction (2.02–2.06 evaluations per step), the few where a contact or a friction
 // branch changes take two or three; two corrections on every step (the earlier default) are both
 // costlier and less accurate on the stairs (README "An accurate step at 1 ms"). The linear solves
 // eliminate the diagonal motor block first (StructuredLU, ImplicitTerms::n_diag).

@@ -47,6 +47,7 @@ void validate(const IntegratorOptions& o) {
     throw std::invalid_argument(os.str());
   };
   if (!(o.h > 0) || !std::isfinite(o.h)) bad("h", o.h, "step must be finite and > 0 [s]");
+  if (!(o.newton_tol >= 0) || !std::isfinite(o.newton_tol)) bad("newton_tol", o.newton_tol, "must be finite and >= 0");
   if (o.newton_iterations < 0 || o.newton_iterations > 50)
     bad("newton_iterations", o.newton_iterations, "must be 0 … 50");
   if (!(o.theta >= 0.5 && o.theta <= 1.0)) bad("theta", o.theta, "must be in [0.5, 1]");
@@ -57,8 +58,97 @@ void validate(const IntegratorOptions& o) {
   }
 }
 
+StructuredLU::StructuredLU(int n)
+    : A_(MatrixXd::Zero(n, n)), d_inv_(VectorXd::Zero(n)), piv_(Eigen::VectorXi::Zero(n)), n_(n) {}
+
+// Column-major with raw column pointers (restrict: the columns a loop reads and the one it writes
+// never overlap), so the inner loops over rows vectorize.
+bool StructuredLU::factor(int nd) {
+  nd_ = nd;
+  const int n = n_, n1 = n - nd;
+  double* A = A_.data();
+  auto col = [&](int c) { return A + static_cast<std::ptrdiff_t>(c) * n; };
+  bool ok = true;
+  // The diagonal block: C = A12 A22⁻¹ in place of A12.
+  for (int j = 0; j < nd; ++j) {
+    double* __restrict cj = col(n1 + j);
+    const double d = cj[n1 + j];
+    ok = ok && d != 0.0 && std::isfinite(d);
+    const double inv = 1.0 / d;
+    d_inv_(j) = inv;
+    for (int r = 0; r < n1; ++r) cj[r] *= inv;
+  }
+  // The Schur complement S = A11 − C A21 (column by column; A21's zeros skipped).
+  for (int c = 0; c < n1; ++c) {
+    double* __restrict ac = col(c);
+    for (int j = 0; j < nd; ++j) {
+      const double t = ac[n1 + j];
+      if (t == 0.0) continue;
+      const double* __restrict cj = col(n1 + j);
+      for (int r = 0; r < n1; ++r) ac[r] -= cj[r] * t;
+    }
+  }
+  // LU of S with partial pivoting, in place (unit lower L below the diagonal, U on and above).
+  for (int k = 0; k < n1; ++k) {
+    double* __restrict ak = col(k);
+    int p = k;
+    double big = std::abs(ak[k]);
+    for (int i = k + 1; i < n1; ++i)
+      if (std::abs(ak[i]) > big) big = std::abs(ak[i]), p = i;
+    piv_(k) = p;
+    if (!(big > 0.0) || !std::isfinite(big)) ok = false;
+    if (p != k)
+      for (int c = 0; c < n1; ++c) std::swap(col(c)[k], col(c)[p]);
+    const double inv = 1.0 / ak[k];
+    for (int i = k + 1; i < n1; ++i) ak[i] *= inv;
+    for (int c = k + 1; c < n1; ++c) {
+      double* __restrict ac = col(c);
+      const double t = ac[k];
+      if (t == 0.0) continue;
+      for (int i = k + 1; i < n1; ++i) ac[i] -= ak[i] * t;
+    }
+  }
+  return ok;
+}
+
+void StructuredLU::solve(Eigen::Ref<VectorXd> b) const {
+  const int n = n_, n1 = n - nd_;
+  const double* A = A_.data();
+  auto col = [&](int c) { return A + static_cast<std::ptrdiff_t>(c) * n; };
+  double* __restrict x = b.data();
+  // b1 − A12 A22⁻¹ b2
+  for (int j = 0; j < nd_; ++j) {
+    const double t = x[n1 + j];
+    if (t == 0.0) continue;
+    const double* __restrict cj = col(n1 + j);
+    for (int r = 0; r < n1; ++r) x[r] -= cj[r] * t;
+  }
+  // x1 = S⁻¹ (…): the row swaps, then L y = …, U x1 = y (column-oriented).
+  for (int k = 0; k < n1; ++k)
+    if (piv_(k) != k) std::swap(x[k], x[piv_(k)]);
+  for (int k = 0; k < n1; ++k) {
+    const double t = x[k];
+    if (t == 0.0) continue;
+    const double* __restrict ak = col(k);
+    for (int i = k + 1; i < n1; ++i) x[i] -= ak[i] * t;
+  }
+  for (int k = n1 - 1; k >= 0; --k) {
+    const double* __restrict ak = col(k);
+    const double t = x[k] / ak[k];
+    x[k] = t;
+    if (t == 0.0) continue;
+    for (int i = 0; i < k; ++i) x[i] -= ak[i] * t;
+  }
+  // x2 = A22⁻¹ (b2 − A21 x1): A21 is the rows n1 … of the first n1 columns.
+  for (int j = 0; j < nd_; ++j) {
+    double s = x[n1 + j];
+    for (int c = 0; c < n1; ++c) s -= col(c)[n1 + j] * x[c];
+    x[n1 + j] = d_inv_(j) * s;
+  }
+}
+
 Integrator::Integrator(int nq, const IntegratorOptions& o)
-    : o_(o), nq_(nq), h_adapt_(o.h), lu_(nq) {
+    : o_(o), nq_(nq), h_adapt_(o.h), lu_(nq), slu_(nq) {
   validate(o_);
   const int n = 2 * nq;
   for (auto* v : {&y_, &y_new_, &tmp_}) *v = VectorXd::Zero(n);
@@ -70,6 +160,8 @@ Integrator::Integrator(int nq, const IntegratorOptions& o)
   imp_.dFdv = MatrixXd::Zero(nq, nq);
   A_ = MatrixXd::Zero(nq, nq);
   imp1_ = imp_;
+  ick_ = imp_;
+  ick_.dFdq_v = VectorXd::Zero(nq);
   v1_ = VectorXd::Zero(nq);
   q1_ = VectorXd::Zero(nq);
 }
@@ -154,22 +246,25 @@ StepStatus Integrator::step(System& sys, double t, double h, VectorXd& q, Vector
   return (finite(q) && finite(v)) ? StepStatus::kOk : StepStatus::kNonFinite;
 }
 
-// The θ-trapezoid with Newton corrections (integrators.hpp). Buffers: imp_ at (q₀, v₀) — its M,
+// The θ-trapezoid with Newton corrections (integrators.hpp). Buffers: ick_ at (q₀, v₀) — its M,
 // F are needed by every correction —, imp1_ at the iterate, v1_ the iterate, q1_ its position,
 // dv_ the residual / correction. No allocation.
 StepStatus Integrator::step_implicit_contact(System& sys, double t, double h, VectorXd& q,
                                              VectorXd& v) {
-  const double th = o_.theta, a = th * h, b = th * th * h * h;
+  const double th = o_.theta, a = th * h;  // and θ²h² = a · θh
   ++stats_.evaluations;
-  if (!sys.implicit_terms(t, q, v, imp_)) return StepStatus::kEvalFailed;
-  // Predictor: linearized at the start of the step.
-  A_ = imp_.M - a * imp_.dFdv - b * imp_.dFdq;
-  dv_.noalias() = imp_.dFdq * v;
-  dv_ = h * (imp_.F + a * dv_);
-  lu_.compute(A_);
-  vtmp_ = lu_.solve(dv_);
-  v1_ = v + vtmp_;
-  const double tol = 1e-10;
+  // Both evaluations want only M − θh (D_v + θh D_q) (ImplicitTerms::dq_in_dv); the start's also
+  // D_q v for the predictor and M(q₀) for every correction.
+  ick_.dq_in_dv = imp1_.dq_in_dv = a;
+  imp1_.with_mass = false;
+  if (!sys.implicit_terms(t, q, v, ick_)) return StepStatus::kEvalFailed;
+  // Predictor: linearized at the start of the step, (M − θh D_v − θ²h² D_q) Δv = h (F + θh D_q v).
+  slu_.matrix() = ick_.M - a * ick_.dFdv;
+  if (!slu_.factor(ick_.n_diag)) return StepStatus::kNonFinite;
+  dv_ = h * (ick_.F + a * ick_.dFdq_v);
+  slu_.solve(dv_);
+  v1_ = v + dv_;
+  const double tol = o_.newton_tol;
   imp1_.v_start = &v;
   bool converged = o_.newton_iterations == 0;
   for (int it = 0; it < o_.newton_iterations; ++it) {
@@ -181,14 +276,17 @@ StepStatus Integrator::step_implicit_contact(System& sys, double t, double h, Ve
     }
     // Residual G(v₁) = M₀ (v₁ − v₀) − h [(1−θ) F₀ + θ F₁], Jacobian M₀ − θh D_v − θ²h² D_q at (q₁, v₁).
     vtmp_ = v1_ - v;
-    dv_.noalias() = imp_.M * vtmp_;
-    dv_ -= ((1 - th) * h) * imp_.F + a * imp1_.F;
-    A_ = imp_.M - a * imp1_.dFdv - b * imp1_.dFdq;
-    lu_.compute(A_);
-    vtmp_.noalias() = lu_.solve(dv_);
-    v1_ -= vtmp_;
+    dv_.noalias() = ick_.M * vtmp_;
+    dv_ -= ((1 - th) * h) * ick_.F + a * imp1_.F;
+    slu_.matrix() = ick_.M - a * imp1_.dFdv;  // dFdv holds ∂F/∂v + θh ∂F/∂q (dq_in_dv)
+    if (!slu_.factor(imp1_.n_diag)) {
+      imp1_.v_start = nullptr;
+      return StepStatus::kNonFinite;
+    }
+    slu_.solve(dv_);
+    v1_ -= dv_;
     if (!v1_.allFinite()) break;
-    if (vtmp_.lpNorm<Eigen::Infinity>() <= tol * (1.0 + v1_.lpNorm<Eigen::Infinity>())) {
+    if (dv_.lpNorm<Eigen::Infinity>() <= tol * (1.0 + v1_.lpNorm<Eigen::Infinity>())) {
       converged = true;
       break;
     }

@@ -37,6 +37,7 @@ Plant::Plant(const Scene& scene)
   Jb_ = MatrixXd::Zero(2, n);
   jn_ = Eigen::RowVectorXd::Zero(n);
   jt_ = Eigen::RowVectorXd::Zero(n);
+  jw_ = Eigen::RowVectorXd::Zero(n);
   pts_x_ = VectorXd::Zero(P);
   pts_z_ = VectorXd::Zero(P);
   anchor_ = VectorXd::Zero(P);
@@ -192,12 +193,12 @@ void Plant::add_contact(int k_a, int k_b, double s, const Vec2& n, double depth,
       point_jacobian(m, data_, k_b, Jb_);
       Ja_ = (1 - s) * Ja_ + s * Jb_;
     }
-    add_contact_jacobian(n, fN, fT, dfdv, vt, mu, with_friction, jac);
+    add_contact_jacobian(n, fN, fT, dfdv, vt, mu, with_friction, v, jac);
   }
 }
 
 void Plant::add_contact_jacobian(const Vec2& n, double fN, double fT, double dfdv, double vt, double mu,
-                                 bool with_friction, ImplicitTerms* jac) {
+                                 bool with_friction, const VectorXd& v, ImplicitTerms* jac) {
   const Model& m = model_;
   const Ground& g = scene_.ground;
   const Vec2 t(n.y(), -n.x());
@@ -217,6 +218,22 @@ void Plant::add_contact_jacobian(const Vec2& n, double fN, double fT, double dfd
     double vt0 = 0.0;
     for (int c = 0; c < nb; ++c) vt0 += jt_(c) * (*jac->v_start)(c);
     if (std::abs(vt0) < g.v_s || vt0 * vt < 0) dfdv = -mu * fN / g.v_s;
+  }
+  if (jac->dq_in_dv > 0) {
+    // Only ∂F/∂v + s ∂F/∂q (ImplicitTerms::dq_in_dv): −(d + s k) w Jnᵀ + ∂f_T/∂v_t JtᵀJt with
+    // the shared factor w = J_n + r J_t, one pass.
+    for (int c = 0; c < nb; ++c) jw_(c) = jn_(c) + r * jt_(c);
+    if (jac->dFdq_v.size() > 0) {  // ∂F/∂q · v = −k w (J_n v)
+      double jnv = 0.0;
+      for (int c = 0; c < nb; ++c) jnv += jn_(c) * v(c);
+      for (int c = 0; c < nb; ++c) jac->dFdq_v(c) -= g.k * jnv * jw_(c);
+    }
+    const double kd = g.d + jac->dq_in_dv * g.k;
+    for (int b = 0; b < nb; ++b) {
+      const double jnb = kd * jn_(b), jtb = dfdv * jt_(b);
+      for (int a = 0; a < nb; ++a) jac->dFdv(a, b) += jt_(a) * jtb - jw_(a) * jnb;
+    }
+    return;
   }
   for (int b = 0; b < nb; ++b) {
     const double jnb = jn_(b), jtb = jt_(b);
@@ -380,7 +397,7 @@ void Plant::add_shape_contact(const ShapePoint& c, const Vec2& n, double depth, 
       Ja_(0, col) += w * rx;
       Ja_(1, col) += w * rz;
     }
-    add_contact_jacobian(n, fN, fT, dfdv, vt, mu, with_friction, jac);
+    add_contact_jacobian(n, fN, fT, dfdv, vt, mu, with_friction, v, jac);
   }
 }
 
@@ -592,10 +609,12 @@ void Plant::fault_forces(const VectorXd& q, Eigen::Ref<VectorXd> Q, ImplicitTerm
     Q(b) -= f;
     Q(a) += f;
     if (jac) {
-      jac->dFdq(a, a) -= dK;
-      jac->dFdq(b, b) -= dK;
-      jac->dFdq(a, b) += dK;
-      jac->dFdq(b, a) += dK;
+      MatrixXd& D = jac->dq_in_dv > 0 ? jac->dFdv : jac->dFdq;
+      const double k = jac->dq_in_dv > 0 ? jac->dq_in_dv * dK : dK;
+      D(a, a) -= k;
+      D(b, b) -= k;
+      D(a, b) += k;
+      D(b, a) += k;
     }
   }
 }
@@ -615,27 +634,41 @@ bool Plant::implicit_terms(double, const VectorXd& q, const VectorXd& v, Implici
   const Model& m = model_;
   update_kinematics(m, data_, q, v);
   motor_torques(q, v, u_);
-  out.dFdq.setZero();
+  // ∂F/∂q's terms go to dFdq, or scaled by s into dFdv (ImplicitTerms::dq_in_dv).
+  const double s = out.dq_in_dv;
+  MatrixXd& Dq = s > 0 ? out.dFdv : out.dFdq;
+  const double sq = s > 0 ? s : 1.0;
+  if (!(s > 0)) out.dFdq.setZero();
   out.dFdv.setZero();
+  const bool dq_v = s > 0 && out.dFdq_v.size() > 0;
+  if (dq_v) out.dFdq_v.setZero();
   Q_.setZero();
   contact_forces(q, v, Q_, &out, nullptr);
   fault_forces(q, Q_, &out);
-  compute_mass_matrix(m, data_);
-  if (!data_.mass_valid) return false;
+  if (out.with_mass) {
+    compute_mass_matrix(m, data_);
+    if (!data_.mass_valid) return false;
+    out.M = data_.M;
+  }
   compute_bias(m, data_, q);
   const int first = m.flexible() ? m.i_beta(0) : 0;
-  out.M = data_.M;
+  out.n_diag = m.flexible() ? m.joints() : 0;  // the motor block of M, dFdq, dFdv is diagonal
   out.F = Q_ - data_.bias;
   out.F.segment(first, m.joints()) += u_;
   // Springs: F = −K_T q.
   if (m.flexible()) {
     for (int j = 0; j < m.joints(); ++j) {
-      const double K = m.K()(j);
+      const double K = sq * m.K()(j);
       const int a = m.i_alpha(j), b = m.i_beta(j);
-      out.dFdq(a, a) -= K;
-      out.dFdq(b, b) -= K;
-      out.dFdq(a, b) += K;
-      out.dFdq(b, a) += K;
+      Dq(a, a) -= K;
+      Dq(b, b) -= K;
+      Dq(a, b) += K;
+      Dq(b, a) += K;
+      if (dq_v) {  // the spring and its injected change (fault_forces): −K_j (1 + (scale − 1)) …
+        const double Kt = faults_.spring_scale(j) * m.K()(j), dv = v(b) - v(a);
+        out.dFdq_v(a) += Kt * dv;
+        out.dFdq_v(b) -= Kt * dv;
+      }
     }
   }
   // Module PD and joint friction (zero slope where the torque limit is active), through the
@@ -650,7 +683,8 @@ bool Plant::implicit_terms(double, const VectorXd& q, const VectorXd& v, Implici
     const double law = gain == 1.0 ? u_(j) + bj * v(r) : (u_(j) + bj * v(r)) / gain;
     const bool saturated = lim > 0 && gain != 0.0 && std::abs(law) >= lim;
     if (!input_.torque_off && !saturated) {
-      out.dFdq(r, r) -= gain * input_.kp(j);
+      Dq(r, r) -= sq * gain * input_.kp(j);
+      if (dq_v) out.dFdq_v(r) -= gain * input_.kp(j) * v(r);
       out.dFdv(r, r) -= gain * input_.kd(j);
     }
     out.dFdv(r, r) -= bj;

@@ -235,3 +235,35 @@ TEST(ImplicitContact, StopsAndSticksAt1ms) {
   }
   EXPECT_LT(vt_max, s.ground.v_s) << "a point slides at the end of a step after the robot stopped";
 }
+
+// The corrections stop once one moves v₁ by ≤ newton_tol (1 + |v₁|∞): on the closed-loop gait at
+// 1 ms the default (1e-2, at most 3 corrections) takes one correction in nearly every step
+// (between 2 and 2.3 evaluations per step), where newton_tol = 0 with 2 corrections is always 3;
+// the two follow each other within 1 mm over 2 s. A negative or NaN tolerance is refused.
+TEST(ImplicitContact, NewtonToleranceStopsTheCorrections) {
+  const Scene s = base_scene(InitialPose::kGaitStart);
+  IntegratorOptions full = ic(1e-3);
+  full.newton_iterations = 2;
+  full.newton_tol = 0.0;
+  hard::GaitLoop adaptive(s, ic(1e-3));
+  hard::GaitLoop always(s, full);
+  double diff = 0.0;
+  for (int k = 0; k < 2000; ++k) {
+    ASSERT_EQ(adaptive.step(), StepStatus::kOk);
+    ASSERT_EQ(always.step(), StepStatus::kOk);
+    diff = std::max(diff, (hard::com(adaptive.sim()) - hard::com(always.sim())).norm());
+  }
+  const auto per_step = [](hard::GaitLoop& g) {
+    const IntegratorStats& st = g.sim().integrator().stats();
+    return static_cast<double>(st.evaluations) / static_cast<double>(st.steps);
+  };
+  EXPECT_GE(per_step(adaptive), 2.0);
+  EXPECT_LT(per_step(adaptive), 2.3);
+  EXPECT_DOUBLE_EQ(per_step(always), 3.0);
+  EXPECT_LT(diff, 1e-3);
+  IntegratorOptions o = ic(1e-3);
+  o.newton_tol = -1e-3;
+  EXPECT_THROW(validate(o), std::invalid_argument);
+  o.newton_tol = std::nan("");
+  EXPECT_THROW(validate(o), std::invalid_argument);
+}

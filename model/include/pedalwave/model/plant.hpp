@@ -133,7 +133,7 @@ class Plant final : public System {
                    ImplicitTerms* jac, ContactReport* report);
   // The contact's stiff terms on jac from Ja_ (the contact point's Jacobian, 2×nq).
   void add_contact_jacobian(const Vec2& n, double fN, double fT, double dfdv, double vt, double mu,
-                            bool with_friction, ImplicitTerms* jac);
+                            bool with_friction, const VectorXd& v, ImplicitTerms* jac);
 
   // Thick links (scene robot.link_shape capsule or box; README "Link shapes"). A contact point is
   // the material point at (1 − s)·p_ka + s·p_kb + r: the body points k_a, k_b (both on link la,
@@ -161,7 +161,7 @@ class Plant final : public System {
   PlantFaults faults_;
   VectorXd u_, Q_;
   MatrixXd Ja_, Jb_;
-  Eigen::RowVectorXd jn_, jt_;
+  Eigen::RowVectorXd jn_, jt_, jw_;
   VectorXd pts_x_, pts_z_; // body point positions of the current evaluation [m], (2N+1)
   VectorXd anchor_;        // stick–slip anchor x per ground point [m]
   std::vector<char> anchored_;

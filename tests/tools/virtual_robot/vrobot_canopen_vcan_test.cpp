@@ -74,37 +74,35 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
   const int J = scene.robot.N - 1;
   // The VM is slow: 100 Hz, generous timeouts (as the own protocol's vcan walk), observer on.
   const double rate = 100, duration = 6;
-  char yaml[1024];
-  std::snprintf(yaml, sizeof yaml,
-                "name: vcan-canopen\nrate_hz: %g\nduration: %g\nrobot: {N: %d}\n"
-                "driver: {type: socketcan, ifname: vcan0, protocol: canopen, drive_mode: csp, heartbeat: 0.1, "
-                "heartbeat_timeout: 2.0}\n"
-                "controller: {k_c: 0, pd_placement: module, K_p: 30, K_D: 15}\n"
-                "realtime: {clock: realtime, cpu: 0, priority: 80, lock_memory: true, stale_timeout: 10, "
-                "read_budget: 0.9}\n"
-                "observer: {enabled: true}\ntelemetry: {enabled: false}\n",
-                rate, duration, scene.robot.N);
-  config::DaemonConfig cfg = config::parse_daemon_config(yaml, "vcan-canopen.yaml", PEDALWAVE_CONFIG_DIR "/runtime");
-  cfg.controller.gait.A_p = scene.gait.A_p;
-  cfg.controller.gait.omega = scene.gait.omega;
-  cfg.controller.admittance.eta_n = {scene.gait.eta};
+  // The CANopen walk's configuration, and the same controller on the in-process plant (lockstep).
+  auto configure = [&](const char* driver, const char* realtime) {
+    char yaml[1024];
+    std::snprintf(yaml, sizeof yaml,
+                  "name: vcan-canopen\nrate_hz: %g\nduration: %g\nrobot: {N: %d}\ndriver: %s\n"
+                  "controller: {k_c: 0, pd_placement: module, K_p: 30, K_D: 15}\nrealtime: %s\n"
+                  "observer: {enabled: true}\ntelemetry: {enabled: false}\n",
+                  rate, duration, scene.robot.N, driver, realtime);
+    config::DaemonConfig c = config::parse_daemon_config(yaml, "vcan-canopen.yaml", PEDALWAVE_CONFIG_DIR "/runtime");
+    c.controller.gait.A_p = scene.gait.A_p;
+    c.controller.gait.omega = scene.gait.omega;
+    c.controller.admittance.eta_n = {scene.gait.eta};
+    return c;
+  };
+  const config::DaemonConfig cfg =
+      configure("{type: socketcan, ifname: vcan0, protocol: canopen, drive_mode: csp, heartbeat: 0.1, "
+                "heartbeat_timeout: 2.0}",
+                "{clock: realtime, cpu: 0, priority: 80, lock_memory: true, stale_timeout: 10, read_budget: 0.8}");
+  const app::DaemonResult sim = app::run_daemon(
+      configure("{type: sim, scene: ../scenes/flat_high_friction.yaml, clock: lockstep}", "{clock: lockstep}"),
+      test::quiet());
+  ASSERT_EQ(sim.run.fault, runtime::FaultClass::kNone) << runtime::to_string(sim.run.fault);
 
-  const std::string file = std::string(::testing::TempDir()) + "canopen_candump.log";
-  Candump dump(exe, file);
-  ASSERT_TRUE(dump.running());
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // candump bound to vcan0
-  test::WalkSetup s{.transport = test::Transport::kCanClassic, .rate_hz = rate, .duration = duration,
-                    .command_timeout = 1.0, .plant_max_step = 2.5e-4};
   // SCHED_FIFO for the loop (80) and the drives' thread (70), as the other deployment walks in the
   // VM: at normal priority the VM's first cycles overran to 27 ms, beyond the host PD's sampled
   // stability limit 2J/K_D = 13 ms in CST (the PD on the host); see above.
+  test::WalkSetup s{.transport = test::Transport::kCanClassic, .rate_hz = rate, .duration = duration,
+                    .command_timeout = 1.0, .plant_max_step = 2.5e-4};
   s.robot_priority = 70;
-  vrobot::VirtualRobotOptions vo = test::robot_options(s, scene, {});
-  vo.bus = vrobot::Bus::kCanOpen;
-  vrobot::VirtualRobot robot(scene, vrobot::open_canopen_module_socket(kIf), vo);
-  robot.start();
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the drives' power-on boot-ups
-  std::unique_ptr<drivers::CanOpenDriver> drv = drivers::CanOpenDriver::open(cfg.driver.can);
   // PEDALWAVE_VM_PLOTS=DIR: the daemon's --plots (cycles.csv) in DIR/canopen, on the folder the VM
   // shares with the host (debugging this test).
   std::string plots;
@@ -112,25 +110,55 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
     plots = std::string(dir) + "/canopen";
     std::filesystem::create_directories(plots);
   }
-  const test::WalkResult r = test::run_walk(cfg, robot, *drv, false, plots);
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // candump writes the tail
-  dump.stop();
-  std::printf("%s[canopen-vcan] %llu cycles, speed %.3f cm/s, missing %llu, late %llu, driver fault '%s'\n",
-              r.report.c_str(), static_cast<unsigned long long>(r.daemon.run.cycles), 100 * r.speed,
+  // Each attempt: candump first, so it records the whole run. A run in which the emulated machine
+  // held the link ≥ 0.2 s is VOID and run again (test::walk_unless_machine_stalled), as the own
+  // protocol's VM walks.
+  const std::string file = std::string(::testing::TempDir()) + "canopen_candump.log";
+  std::vector<std::string> lines;
+  std::string driver_fault;
+  int driver_fault_joint = -1, void_runs = 0;
+  const test::WalkResult r = test::walk_unless_machine_stalled("canopen vcan walk", rate, void_runs, [&] {
+    Candump dump(exe, file);
+    EXPECT_TRUE(dump.running());
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));  // candump bound to vcan0
+    vrobot::VirtualRobotOptions vo = test::robot_options(s, scene, {});
+    vo.bus = vrobot::Bus::kCanOpen;
+    vrobot::VirtualRobot robot(scene, vrobot::open_canopen_module_socket(kIf), vo);
+    robot.start();
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the drives' power-on boot-ups
+    std::unique_ptr<drivers::CanOpenDriver> drv = drivers::CanOpenDriver::open(cfg.driver.can);
+    test::WalkResult w = test::run_walk(cfg, robot, *drv, false, plots);
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));  // candump writes the tail
+    dump.stop();
+    lines = dump.lines();
+    driver_fault = drv->fault_text();
+    driver_fault_joint = drv->fault_joint();
+    return w;
+  });
+  EXPECT_LT(test::stall_of(r, rate).worst(), test::kMachineStall)
+      << "the machine held the link in every attempt (" << void_runs << " void runs)";
+  std::printf("%s[canopen-vcan] %llu cycles, overruns %llu, speed %.3f cm/s (in-process %.3f cm/s), missing %llu, "
+              "late %llu (used %llu), driver fault '%s'\n",
+              r.report.c_str(), static_cast<unsigned long long>(r.daemon.run.cycles),
+              static_cast<unsigned long long>(r.daemon.run.overruns), 100 * r.speed, 100 * sim.forward_speed,
               static_cast<unsigned long long>(r.counters.missing), static_cast<unsigned long long>(r.counters.late),
-              drv->fault_text());
+              static_cast<unsigned long long>(r.counters.late_used), driver_fault.c_str());
   EXPECT_EQ(r.daemon.run.reason, runtime::ExitReason::kCycleLimit);
   EXPECT_EQ(r.daemon.run.fault, runtime::FaultClass::kNone) << runtime::to_string(r.daemon.run.fault);
-  // Not asserted, and open (issue 14): in the VM this walk is not clean. One run (05:08 UTC):
-  // 92 overruns in 600 cycles, 845 samples late at the master though candump saw every TPDO of
-  // every SYNC, and a false actuator_torque degrade (hold) on joint 3 at 4.1 s. The exit line
-  // above prints the events of each run.
-  EXPECT_EQ(drv->fault_joint(), -1) << drv->fault_text();
+  // The deployment path is clean: no fault, warning or hold (issue 14: before the synchronous
+  // window and the late answers' use, 845 of 3000 samples were dropped as late and the observer
+  // named a false actuator_torque).
+  int listed = 0;
+  for (const runtime::RunEvent& e : r.daemon.events) listed += e.listed;
+  EXPECT_EQ(listed, 0) << "no fault, warning or hold: " << r.daemon.exit_line;
+  EXPECT_EQ(driver_fault_joint, -1) << driver_fault;
   EXPECT_TRUE(r.all_modules_off);
+  ASSERT_TRUE(std::isfinite(r.speed));
+  EXPECT_NEAR(r.speed, sim.forward_speed, 0.15 * sim.forward_speed);
 
   // ---- The bus as candump saw it ----
   std::vector<Frame> frames;
-  for (const std::string& l : dump.lines())
+  for (const std::string& l : lines)
     if (auto f = parse(l)) frames.push_back(*f);
   ASSERT_FALSE(frames.empty());
   // Bring-up: NMT reset communication to all (000h: 82 00), a boot-up (700h + node: 00) from every

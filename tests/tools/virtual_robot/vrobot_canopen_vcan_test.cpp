@@ -112,12 +112,16 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
   }
   // Each attempt: candump first, so it records the whole run. A run in which the emulated machine
   // held the link ≥ 0.2 s is VOID and run again (test::walk_unless_machine_stalled), as the own
-  // protocol's VM walks.
+  // protocol's VM walks; so is one whose loop overran in more than a tenth of its cycles: the
+  // emulated machine did not run the loop in real time (seen with a compiler beside the VM: reads
+  // of 26 ms in a 10 ms period, the loop at ≈ 37 Hz), and such a run says nothing about the
+  // deployment path. Open (issue 14): in such a run the observer can still name a false
+  // actuator_torque.
   const std::string file = std::string(::testing::TempDir()) + "canopen_candump.log";
   std::vector<std::string> lines;
   std::string driver_fault;
   int driver_fault_joint = -1, void_runs = 0;
-  const test::WalkResult r = test::walk_unless_machine_stalled("canopen vcan walk", rate, void_runs, [&] {
+  auto attempt = [&] { return test::walk_unless_machine_stalled("canopen vcan walk", rate, void_runs, [&] {
     Candump dump(exe, file);
     EXPECT_TRUE(dump.running());
     std::this_thread::sleep_for(std::chrono::milliseconds(300));  // candump bound to vcan0
@@ -134,7 +138,18 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
     driver_fault = drv->fault_text();
     driver_fault_joint = drv->fault_joint();
     return w;
-  });
+  }); };
+  auto not_real_time = [](const test::WalkResult& w) { return w.daemon.run.overruns * 10 > w.daemon.run.cycles; };
+  test::WalkResult r = attempt();
+  for (int a = 2; a <= test::kAttempts && not_real_time(r); ++a) {
+    std::printf("######## VOID RUN (canopen vcan walk, attempt %d of %d): the loop overran in %llu of %llu cycles "
+                "(more than 10 %%): the machine did not run it in real time; the runtime's verdict was: %s ########\n",
+                a - 1, test::kAttempts, static_cast<unsigned long long>(r.daemon.run.overruns),
+                static_cast<unsigned long long>(r.daemon.run.cycles), r.daemon.exit_line.c_str());
+    std::fflush(stdout);
+    r = attempt();
+  }
+  EXPECT_FALSE(not_real_time(r)) << "the loop overran in more than 10 % of its cycles in every attempt";
   EXPECT_LT(test::stall_of(r, rate).worst(), test::kMachineStall)
       << "the machine held the link in every attempt (" << void_runs << " void runs)";
   std::printf("%s[canopen-vcan] %llu cycles, overruns %llu, speed %.3f cm/s (in-process %.3f cm/s), missing %llu, "

@@ -102,7 +102,7 @@ CanOpenDriver::CanOpenDriver(int fd, const SocketCanConfig& cfg) : fd_(fd), join
       const auto ju = static_cast<std::size_t>(j);
       const std::uint8_t id = cfg.canopen.node[ju] == 0 ? static_cast<std::uint8_t>(j + 1) : cfg.canopen.node[ju];
       if (id < 1 || id > 127 || joint_of_node_[id] >= 0)
-        throw std::invalid_argument("CANopen: node id " + std::to_string(id) + " of joint " + std::to_string(j) +
+        throw std::invalid_argument("CANopen: node id " + std::to_string(id) + " of joint " + std::to_string(j + 1) +
                                     ": expected a unique node id in 1 … 127");
       node_[ju] = id;
       joint_of_node_[id] = static_cast<std::int8_t>(j);
@@ -129,7 +129,7 @@ CanOpenDriver::~CanOpenDriver() {
 }
 
 std::string CanOpenDriver::who(int j) const {
-  return "CANopen node " + std::to_string(node_[static_cast<std::size_t>(j)]) + " (joint " + std::to_string(j) + ")";
+  return "CANopen node " + std::to_string(node_[static_cast<std::size_t>(j)]) + " (joint " + std::to_string(j + 1) + ")";
 }
 
 cia402::State CanOpenDriver::drive_state(int j) const {
@@ -271,7 +271,7 @@ void CanOpenDriver::bring_up() {
     for (int j = 0; j < joints_; ++j)
       if (!booted[static_cast<std::size_t>(j)])
         missing += (missing.empty() ? "" : ", ") + std::to_string(node_[static_cast<std::size_t>(j)]) + " (joint " +
-                   std::to_string(j) + ")";
+                   std::to_string(j + 1) + ")";
     throw std::runtime_error("CANopen: no boot-up message from node " + missing + " within " +
                              std::to_string(o.boot_timeout_s) + " s after NMT reset communication");
   }
@@ -403,7 +403,7 @@ void CanOpenDriver::note_fault(int j, const char* fmt, unsigned a, unsigned b, c
   if (fault_joint_ >= 0) return;  // the first one is named
   fault_joint_ = j;
   const int n = std::snprintf(fault_text_.data(), fault_text_.size(), "CANopen node %u (joint %d): ",
-                              static_cast<unsigned>(node_[static_cast<std::size_t>(j)]), j);
+                              static_cast<unsigned>(node_[static_cast<std::size_t>(j)]), j + 1);
   if (n > 0 && static_cast<std::size_t>(n) < fault_text_.size())
     std::snprintf(fault_text_.data() + n, fault_text_.size() - static_cast<std::size_t>(n), fmt, a, b, text);
 }

@@ -377,7 +377,7 @@ TEST(CanOpenMaster, ANodeThatFallsSilentIsAHeartbeatFaultNamingIt) {
   EXPECT_FALSE(drv.lost(0));
   EXPECT_FALSE(drv.lost(2));
   EXPECT_EQ(drv.fault_joint(), 1);
-  EXPECT_EQ(std::string(drv.fault_text()).rfind("CANopen node 2 (joint 1): heartbeat lost: none for ", 0), 0u)
+  EXPECT_EQ(std::string(drv.fault_text()).rfind("CANopen node 2 (joint 2): heartbeat lost: none for ", 0), 0u)
       << drv.fault_text();
   EXPECT_NE(std::string(drv.fault_text()).find("(consumer time 300 ms)"), std::string::npos) << drv.fault_text();
   EXPECT_TRUE(log.back().status[1] & pd::kStatusMissing);
@@ -396,7 +396,7 @@ TEST(CanOpenMaster, AnEmcyIsANamedDriveFaultOnItsJoint) {
   const auto log = run(drv, 100, torque_sine);
   EXPECT_EQ(drv.fault_joint(), 2);
   EXPECT_STREQ(drv.fault_text(),
-               "CANopen node 3 (joint 2): EMCY 2310h, error register 03h: continuous over-current (device output side)");
+               "CANopen node 3 (joint 3): EMCY 2310h, error register 03h: continuous over-current (device output side)");
   EXPECT_EQ(drv.emcy_code(2), 0x2310);
   EXPECT_EQ(bus.emu->drive(2), pd::cia402::State::kFault);
   bus.halt();
@@ -431,7 +431,7 @@ TEST(CanOpenMaster, AnSdoAbortAtConfigurationIsARefusalNamingNodeAndObject) {
     FAIL() << "started although node 2 refused its TPDO 2 mapping";
   } catch (const std::runtime_error& e) {
     EXPECT_STREQ(e.what(),
-                 "CANopen node 2 (joint 1): SDO download of 1A01h:00 (TPDO mapping count) = 00h refused: abort "
+                 "CANopen node 2 (joint 2): SDO download of 1A01h:00 (TPDO mapping count) = 00h refused: abort "
                  "06090030h invalid value for parameter");
   }
 }
@@ -447,7 +447,7 @@ TEST(CanOpenMaster, ANodeThatNeverBootsIsNamed) {
     pd::CanOpenDriver drv(bus.take_master_fd(), c);
     FAIL() << "started without node 3";
   } catch (const std::runtime_error& e) {
-    EXPECT_EQ(std::string(e.what()).rfind("CANopen: no boot-up message from node 3 (joint 2) within 0.3", 0), 0u)
+    EXPECT_EQ(std::string(e.what()).rfind("CANopen: no boot-up message from node 3 (joint 3) within 0.3", 0), 0u)
         << e.what();
   }
 }

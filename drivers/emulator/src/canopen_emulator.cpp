@@ -372,7 +372,7 @@ CanOpenModuleEmulator::CanOpenModuleEmulator(int fd, const EmulatorConfig& cfg,
     std::uint8_t id = co.node[ju] == 0 ? static_cast<std::uint8_t>(j + 1) : co.node[ju];
     if (id < 1 || id > 127 || joint_of_node_[id] >= 0)
       throw std::invalid_argument("CANopen module emulator: node id " + std::to_string(id) + " of joint " +
-                                  std::to_string(j) + ": expected a unique id in 1 … 127");
+                                  std::to_string(j + 1) + ": expected a unique id in 1 … 127");
     joint_of_node_[id] = static_cast<std::int8_t>(j);
     node_[ju].id = id;
     dict_.push_back(std::make_unique<NodeDictionary>(*this, j));

@@ -193,7 +193,7 @@ TEST(CanOpenWalk, ANodeLostMidWalkStopsTheRuntimeOnItsJointNamedByTheHeartbeatCo
       << runtime::to_string(w.r.daemon.run.fault);
   EXPECT_EQ(w.r.daemon.run.fault_joint, 2);
   EXPECT_EQ(w.fault_joint, 2);
-  EXPECT_EQ(w.fault_text.rfind("CANopen node 3 (joint 2): heartbeat lost: none for ", 0), 0u) << w.fault_text;
+  EXPECT_EQ(w.fault_text.rfind("CANopen node 3 (joint 3): heartbeat lost: none for ", 0), 0u) << w.fault_text;
   // (A silent emulated node stops sending, not receiving: the safe stop reaches it too.)
   EXPECT_TRUE(w.r.all_modules_off) << "safe stop: disable operation reached every drive";
   EXPECT_LT(w.r.daemon.run.cycles, static_cast<std::uint64_t>(kRate * duration));
@@ -211,6 +211,6 @@ TEST(CanOpenWalk, AnEmcyMidWalkStopsTheRuntimeOnItsJointNamed) {
   EXPECT_EQ(w.r.daemon.run.reason, runtime::ExitReason::kFault);
   EXPECT_EQ(w.r.daemon.run.fault, runtime::FaultClass::kStaleData);
   EXPECT_EQ(w.r.daemon.run.fault_joint, 1);
-  EXPECT_EQ(w.fault_text, "CANopen node 2 (joint 1): EMCY 4210h, error register 09h: excess temperature (device)");
+  EXPECT_EQ(w.fault_text, "CANopen node 2 (joint 2): EMCY 4210h, error register 09h: excess temperature (device)");
   EXPECT_TRUE(w.r.all_modules_off) << "the other drives got disable operation";
 }

@@ -29,7 +29,7 @@
 // goes to 2010h / 2011h by one expedited SDO download at a time between the PDOs.
 // Heartbeat consumer: a node without heartbeat for heartbeat_timeout_s is lost; EMCY consumer: an
 // emergency with a non-zero code (or a statusword in Fault) is a drive fault. Either is latched,
-// named in fault_text() ("node 3 (joint 2): heartbeat lost …", "node 2 (joint 1): EMCY 2310h …"),
+// named in fault_text() ("node 3 (joint 3): heartbeat lost …", "node 2 (joint 2): EMCY 2310h …"),
 // and the joint's feedback is reported kStatusMissing (lost) / kStatusStale | kStatusTorqueOff
 // (fault), which the runtime turns into its stale-data fault on that joint.
 // safe_stop(): RPDO 1 with disable operation and zero targets to every node, then a SYNC.

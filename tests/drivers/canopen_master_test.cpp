@@ -338,9 +338,12 @@ TEST(CanOpenMaster, SyncWindowAnAnswerBeyondItsWindowIsNotSent) {
   // Answers due 3.6 ms after the SYNC from SYNC 60 on: beyond the 3.2 ms window, never sent.
   const WindowRun r = run_with_latency(3600 * 1000, 60, 120);
   EXPECT_GE(r.window_dropped, 2u * 3 * 55) << "both TPDOs of every node, from SYNC 60 on";
-  EXPECT_EQ(r.counters.late_used, 0u);
+  // (An answer to a SYNC before the onset may still come late, and be used, under load.)
   for (std::size_t i = 64; i < r.log.size(); ++i)
-    for (int j = 0; j < 3; ++j) EXPECT_TRUE(r.log[i].status[static_cast<std::size_t>(j)] & pd::kStatusMissing) << i;
+    for (int j = 0; j < 3; ++j) {
+      EXPECT_TRUE(r.log[i].status[static_cast<std::size_t>(j)] & pd::kStatusMissing) << i;
+      EXPECT_EQ(r.log[i].sample_ns[static_cast<std::size_t>(j)], 0) << "nothing handed out, cycle " << i;
+    }
   check_on_line(r.log, 40, 40);  // nothing handed out off the line before
 }
 

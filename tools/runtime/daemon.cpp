@@ -194,26 +194,27 @@ void write_runtime_data(const std::string& dir, const SampleRecorder& rec,
   const int J = rec.joints;
   const std::size_t n = rec.rows.size();
   const std::string csv_path = dir + "/cycles.csv";
-  {
-    std::ofstream csv(csv_path);
-    if (!csv) throw std::runtime_error("--plots " + dir + ": cannot write " + csv_path);
+  try {
     static const char* kNames[SampleRecorder::kPerJoint] = {"beta", "beta_dot", "deflection", "alpha",
                                                            "tau_sea", "u", "residual"};
-    csv << "t_s,t_controller_s,mode,fault_flags,wake_latency_us,read_us";
+    std::vector<std::string> header = {"t_s", "t_controller_s", "mode", "fault_flags", "wake_latency_us", "read_us"};
     for (int j = 0; j < J; ++j)
-      for (const char* q : kNames) csv << "," << q << "_" << j + 1;
-    csv << "\n";
-    char buf[64];
+      for (const char* q : kNames) header.push_back(std::string(q) + "_" + std::to_string(j + 1));
+    tk::CsvWriter csv(csv_path, std::move(header));
+    std::vector<tk::CsvWriter::Cell> cells;
     for (std::size_t i = 0; i < n; ++i) {
       const SampleRecorder::Row& r = rec.rows[i];
-      std::snprintf(buf, sizeof buf, "%.6f,%.6f,", static_cast<double>(r.t_ns - log.t0_ns()) * 1e-9, r.t);
-      csv << buf << runtime::to_string(r.mode) << "," << r.fault_flags << "," << r.wake_us << ","
-          << r.read_us;
+      cells.clear();
+      cells.insert(cells.end(), {static_cast<double>(r.t_ns - log.t0_ns()) * 1e-9, r.t,
+                                 std::string_view(runtime::to_string(r.mode)), static_cast<double>(r.fault_flags),
+                                 static_cast<double>(r.wake_us), static_cast<double>(r.read_us)});
       for (int j = 0; j < J; ++j)
-        for (int q = 0; q < SampleRecorder::kPerJoint; ++q) csv << "," << rec.at(i, j, q);
-      csv << "\n";
+        for (int q = 0; q < SampleRecorder::kPerJoint; ++q) cells.emplace_back(rec.at(i, j, q));
+      csv.row(cells);
     }
-    if (!csv) throw std::runtime_error("--plots " + dir + ": write failed: " + csv_path);
+    csv.close();
+  } catch (const tk::CsvError& e) {
+    throw std::runtime_error("--plots " + dir + ": " + e.what());
   }
   tk::Json marks = tk::Json::array();
   for (const runtime::RunEvent& e : events)

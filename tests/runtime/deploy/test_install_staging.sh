@@ -33,7 +33,7 @@ done
 # figures of the committed results' CSV.
 if /usr/bin/python3 -c 'import matplotlib, numpy' 2>/dev/null; then
   mkdir -p "$stage/wp"
-  cp "$(dirname "$0")/../../tools/workprec/results/work_precision.csv" "$stage/wp/"
+  cp "$(dirname "$0")/../../../tools/workprec/results/work_precision.csv" "$stage/wp/"
   /usr/bin/python3 "$stage$DATA_DIR/figures/workprec.py" "$stage/wp" >/dev/null || fail "the installed workprec.py failed"
   [ -s "$stage/wp/stair_com.png" ] || fail "the installed workprec.py drew no stair_com.png"
 fi

@@ -113,6 +113,28 @@ TEST(Csv, ShortestTextAndHeaderLine) {
   std::filesystem::remove(path);
 }
 
+// Text columns (the daemon's cycles.csv: the mode's name): quoted only when they must be, and the
+// reader takes the row back (the numbers exact, the text as NaN when asked).
+TEST(Csv, RowsWithTextCellsAreQuotedOnlyWhenNeededAndReadBack) {
+  const auto path = temp_file("cells.csv");
+  {
+    tk::CsvWriter w(path, {"t", "mode", "tau_1"});
+    const std::vector<tk::CsvWriter::Cell> a = {0.1, "RUNNING", -1.25};
+    const std::vector<tk::CsvWriter::Cell> b = {0.2, "hold, \"frozen\"", 2.5};
+    w.row(a);
+    w.row(b);
+    const std::vector<tk::CsvWriter::Cell> short_row = {0.3, "RUNNING"};
+    EXPECT_THROW(w.row(short_row), tk::CsvError);
+  }
+  EXPECT_EQ(slurp(path), "t,mode,tau_1\n0.1,RUNNING,-1.25\n0.2,\"hold, \"\"frozen\"\"\",2.5\n");
+  const tk::CsvTable t = tk::CsvTable::read(path, {.text_as_nan = true});
+  ASSERT_EQ(t.rows(), 2u);
+  EXPECT_EQ(t.column("tau_1")[1], 2.5);
+  EXPECT_EQ(t.column("t")[0], 0.1);
+  EXPECT_TRUE(std::isnan(t.column("mode")[1]));
+  std::filesystem::remove(path);
+}
+
 TEST(Csv, ColumnCountMismatchNamesTheCounts) {
   const auto path = temp_file("mismatch.csv");
   tk::CsvWriter w(path, {"a", "b", "c"});

@@ -59,29 +59,65 @@ void CsvWriter::comment(std::string_view text) {
   }
 }
 
-void CsvWriter::row(std::span<const double> values) {
-  if (values.size() != header_.size()) {
-    throw CsvError("CSV '" + path_.string() + "': row " + std::to_string(rows_ + 1) + " has " +
-                   std::to_string(values.size()) + " values but the header names " +
-                   std::to_string(header_.size()) + " columns");
-  }
-  line_.clear();
+namespace {
+void append_number(std::string& line, double v) {
   char buf[32];
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    if (i) line_ += ',';
-    const double v = values[i];
-    if (std::isnan(v)) {
-      line_ += "nan";
-    } else if (std::isinf(v)) {
-      line_ += v > 0 ? "inf" : "-inf";
-    } else {
-      const auto r = std::to_chars(buf, buf + sizeof buf, v);
-      line_.append(buf, r.ptr);
-    }
+  if (std::isnan(v)) {
+    line += "nan";
+  } else if (std::isinf(v)) {
+    line += v > 0 ? "inf" : "-inf";
+  } else {
+    const auto r = std::to_chars(buf, buf + sizeof buf, v);
+    line.append(buf, r.ptr);
   }
+}
+void append_text(std::string& line, std::string_view t) {
+  if (t.find_first_of(",\"\r\n") == std::string_view::npos) {
+    line += t;
+    return;
+  }
+  line += '"';
+  for (const char c : t) {
+    if (c == '"') line += '"';
+    line += c;
+  }
+  line += '"';
+}
+}  // namespace
+
+void CsvWriter::check_count(std::size_t n) const {
+  if (n != header_.size()) {
+    throw CsvError("CSV '" + path_.string() + "': row " + std::to_string(rows_ + 1) + " has " +
+                   std::to_string(n) + " values but the header names " + std::to_string(header_.size()) +
+                   " columns");
+  }
+}
+
+void CsvWriter::end_row() {
   line_ += '\n';
   out_.write(line_.data(), static_cast<std::streamsize>(line_.size()));
   ++rows_;
+}
+
+void CsvWriter::row(std::span<const double> values) {
+  check_count(values.size());
+  line_.clear();
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (i) line_ += ',';
+    append_number(line_, values[i]);
+  }
+  end_row();
+}
+
+void CsvWriter::row(std::span<const Cell> cells) {
+  check_count(cells.size());
+  line_.clear();
+  for (std::size_t i = 0; i < cells.size(); ++i) {
+    if (i) line_ += ',';
+    if (cells[i].is_text) append_text(line_, cells[i].text);
+    else append_number(line_, cells[i].number);
+  }
+  end_row();
 }
 
 void CsvWriter::flush() { out_.flush(); }

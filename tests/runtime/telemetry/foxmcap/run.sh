@@ -34,8 +34,8 @@ skip() {
   echo "SKIPPED: foxglove/mcap test: $*"
   exit 77
 }
-# shellcheck source=../../support/npm_peers.sh
-source "$here/../../support/npm_peers.sh"
+# shellcheck source=../../../support/npm_peers.sh
+source "$here/../../../support/npm_peers.sh"
 if why=$(npm_peers_node_problem); then skip "$why"; fi
 
 pkgs=(@mcap/core@2.2.2 @foxglove/rosmsg@5.0.5 @foxglove/rosmsg2-serialization@3.1.0

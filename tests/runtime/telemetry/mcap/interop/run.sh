@@ -25,8 +25,8 @@ skip() {
   echo "SKIPPED: mcap interop test: $*"
   exit 77
 }
-# shellcheck source=../../support/npm_peers.sh
-source "$here/../../support/npm_peers.sh"
+# shellcheck source=../../../../support/npm_peers.sh
+source "$here/../../../../support/npm_peers.sh"
 if why=$(npm_peers_node_problem); then skip "$why"; fi
 
 # Pinned peers: the MCAP reader, its CRC, Foxglove's ROS 2 .msg parser and CDR decoder, and the

@@ -41,6 +41,17 @@ class CsvWriter {
   // columns" when the count differs (nothing is written then).
   void row(std::span<const double> values);
   void row(std::initializer_list<double> values) { row(std::span<const double>(values.begin(), values.size())); }
+  // A row with text columns too (e.g. a mode's name): a number is written as row() writes it, a
+  // text quoted as RFC 4180 asks when it holds ',', '"' or a line break. The count is checked.
+  struct Cell {
+    Cell(double v) : number(v) {}                                  // NOLINT(google-explicit-constructor)
+    Cell(std::string_view t) : text(t), is_text(true) {}           // NOLINT(google-explicit-constructor)
+    Cell(const char* t) : Cell(std::string_view(t)) {}             // NOLINT(google-explicit-constructor)
+    double number = 0.0;
+    std::string_view text;
+    bool is_text = false;
+  };
+  void row(std::span<const Cell> cells);
 
   void flush();
   // Flushes and closes; throws CsvError if a write failed. Called by the destructor (which
@@ -60,6 +71,8 @@ class CsvWriter {
   std::ofstream out_;
   std::size_t rows_ = 0;
   std::string line_;  // reused row buffer
+  void check_count(std::size_t n) const;
+  void end_row();
 };
 
 // A numeric CSV held in memory, by column.

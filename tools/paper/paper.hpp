@@ -6,7 +6,8 @@
 //   sweep        average speed against k_c over the stair (Fig. 9), best k_c, gain, accuracy check
 //   sensitivity  how the above move with the unpublished K and I_r (and two model options)
 //   all          everything and paper_table.md (paper's experiment | paper's simulation | ours)
-// Numbers are never hard-coded: the paper's values appear only as the reference column.
+// Numbers are never hard-coded: the paper's values appear only as the reference column (in the
+// report's template, tools/paper/paper_report.md.in; PaperValues below for the fitted notes).
 #pragma once
 
 #include <optional>
@@ -214,7 +215,9 @@ struct AllResult {
 };
 AllResult all(const Settings& s, const AllOptions& o);
 
-// The comparison table (Markdown, with a sentence per difference) from the results.
+// The comparison table (Markdown, with a sentence per difference) from the results: the templates
+// tools/paper/paper_report.md.in and paper_report_fitted.md.in filled with the computed values
+// (toolkit::TemplateError naming the template's line when they disagree).
 // With r.fitted, a second table follows: the paper's simulation, the shipped scenes and the fitted
 // ones side by side (fitted_rows: its rows).
 std::string paper_table(const AllResult& r, std::size_t* rows = nullptr, std::size_t* fitted_rows = nullptr);

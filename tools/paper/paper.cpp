@@ -5,7 +5,6 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
-#include <iomanip>
 #include <iostream>
 #include <functional>
 #include <limits>
@@ -16,6 +15,7 @@
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/toolkit/csv.hpp"
 #include "pedalwave/toolkit/figures.hpp"
+#include "pedalwave/toolkit/format.hpp"
 #include "pedalwave/toolkit/json.hpp"
 #include "pedalwave/toolkit/progress.hpp"
 #include "pedalwave/toolkit/report_template.hpp"
@@ -30,19 +30,10 @@ namespace {
 
 std::ostream& log(const Settings& s) { return s.log ? *s.log : std::cout; }
 
-std::string fmt(double v, int precision = 3) {
-  if (std::isnan(v)) return "—";
-  std::ostringstream os;
-  os << std::setprecision(precision) << v;
-  return os.str();
-}
+// The toolkit's formatter (toolkit/format.hpp), "—" for a missing value.
+std::string fmt(double v, int precision = 3) { return std::isnan(v) ? "—" : tk::sig(v, precision); }
 // Fixed decimals.
-std::string fixed(double v, int decimals) {
-  if (std::isnan(v)) return "—";
-  std::ostringstream os;
-  os << std::fixed << std::setprecision(decimals) << v;
-  return os.str();
-}
+std::string fixed(double v, int decimals) { return std::isnan(v) ? "—" : tk::fixed(v, decimals); }
 // Speed in cm/s: 2 decimals, 3 below 1 cm/s (the stair's stuck runs differ in the third).
 std::string cms(double v) {
   if (std::isnan(v)) return "—";

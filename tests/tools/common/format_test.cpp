@@ -20,13 +20,14 @@ std::string printf_of(const char* f, int p, double v) {
   return b;
 }
 
-TEST(Format, SigAndFixedAreThePrintfFormats) {
+TEST(Format, SigFixedAndSciAreThePrintfFormats) {
   const std::vector<double> values{0.0,   -0.0,   1.0,     0.1,      0.0218,  -0.0213, 2.5e-4, 1e-4,  123456.0,
                                    1e6,   1.5e7,  -3.25e-3, 10.1,    0.99995, 9.9996,  1e-12,  1e300, 0.125,
                                    2.675, 1.0005, 323.456, 5e-8,     60.0,    151.0,   -7.5,   1e21,  0.5};
   for (double v : values)
     for (int p = 1; p <= 17; ++p) {
       EXPECT_EQ(tk::sig(v, p), printf_of("%.*g", p, v)) << v << " " << p;
+      EXPECT_EQ(tk::sci(v, p - 1), printf_of("%.*e", p - 1, v)) << v << " " << p - 1;
       if (std::abs(v) < 1e22) {
         EXPECT_EQ(tk::fixed(v, p - 1), printf_of("%.*f", p - 1, v)) << v << " " << p - 1;
       }

@@ -29,6 +29,12 @@ std::string fixed(double v, int decimals) {
   return fmt::format("{:.{}f}", v, std::clamp(decimals, 0, 30));
 }
 
+std::string sci(double v, int decimals) {
+  std::string s;
+  if (special(v, &s)) return s;
+  return fmt::format("{:.{}e}", v, std::clamp(decimals, 0, 30));
+}
+
 std::string num(double v, int significant) {
   std::string s;
   if (special(v, &s)) return s;

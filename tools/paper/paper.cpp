@@ -136,6 +136,21 @@ RunSpec make_spec(const Settings& s, model::Scene scene, double duration, double
   return r;
 }
 
+// The report's templates (tools/paper/report/*.md.in): the source tree's while it exists, else the
+// installed ones beside the figure scripts, <figures>/paper_report (runtime/deploy/CMakeLists.txt).
+fs::path report_template(const std::string& name) {
+  return tk::pick_figures_dir(fs::path(PEDALWAVE_PAPER_SOURCE_DIR) / "report", tk::figures_dir() / "paper_report") / name;
+}
+
+// Fills a report template and lines up its tables; rows: the body rows of its first table.
+std::string fill_report(const std::string& name, const std::map<std::string, std::string>& values,
+                        std::size_t* rows = nullptr) {
+  std::vector<std::size_t> per_table;
+  std::string md = tk::align_markdown_tables(tk::fill_template(report_template(name), values), &per_table);
+  if (rows) *rows = per_table.empty() ? 0 : per_table.front();
+  return md;
+}
+
 // ---- The figures' data: <out>/data/<figure>.json (what tools/figures/paper.py draws, its kind and
 // numbers) and the CSVs it names (traces). draw() runs the script on a list of figures.
 
@@ -293,18 +308,14 @@ FlatResult flat(const Settings& s, double duration) {
     write_figure(s, "flat_com", tk::Json::object().set("kind", "flat_com").set("avg_from", f.avg_from).set("runs", std::move(runs)));
     draw(s, {"flat_com"});
   }
-  std::ostringstream md;
-  md << "### Flat ground (`pedalwave_paper flat" << prefix_arg(s) << "`)\n\n"
-     << "Average forward speed of the whole-robot COM over t = " << fmt(f.avg_from) << " … "
-     << fmt(duration) << " s (the first gait period 2π/ω = " << fmt(f.avg_from)
-     << " s excluded), open-loop gait (k_c = 0), " << describe(specs[0].integ) << ", control " << fmt(s.rate_hz)
-     << " Hz.\n\n";
-  tk::Table t({"case", "paper's experiment", "paper's simulation", "ours"});
-  t.add_row({"speed, μ = 0.82", "2.40 cm/s", "2.18 cm/s", cms(f.v_high)});
-  t.add_row({"speed, μ = 0.40", "—", "—", cms(f.v_low)});
-  t.add_row({"gain 0.82 over 0.40", "+20.3 %", "+13.7 %", pct(f.gain)});
-  md << t.to_markdown() << "\n![COM x](flat_com.png)\n";
-  f.markdown = md.str();
+  f.markdown = fill_report("flat.md.in", {{"args", prefix_arg(s)},
+                                           {"avg_from", fmt(f.avg_from)},
+                                           {"duration", fmt(duration)},
+                                           {"integrator", describe(specs[0].integ)},
+                                           {"rate_hz", fmt(s.rate_hz)},
+                                           {"v_high", cms(f.v_high)},
+                                           {"v_low", cms(f.v_low)},
+                                           {"gain", pct(f.gain)}});
   write_text(s.out_dir / "flat.md", f.markdown);
   return f;
 }
@@ -348,19 +359,18 @@ FrictionResult friction(const Settings& s, double duration) {
     write_figure(s, "friction_torque", std::move(fig));
     draw(s, {"friction_torque"});
   }
-  std::ostringstream md;
-  md << "### Friction change (`pedalwave_paper friction" << prefix_arg(s) << "`)\n\n"
-     << "Scene `" << s.scene_prefix << "friction_change`: μ = 0.82, then " << fmt(sc.ground.patches.front().mu, 2) << " from x = "
-     << fmt(f.cross_x) << " m; " << fmt(f.duration) << " s, open-loop gait, " << describe_integ(s, sc)
-     << ". The head tip reaches the low-friction surface at t = " << secs(f.t_cross)
-     << ". Negative peaks of the head joint's SEA torque K(β − α) (one per gait period: the minimum "
-        "within ± half a period; the first period excluded):\n\n";
-  tk::Table t({"", "peaks", "mean |peak| [N·m]"});
-  t.add_row({"before the crossing", std::to_string(p.before.size()), fmt(f.mean_before, 4)});
-  t.add_row({"after the crossing", std::to_string(p.after.size()), fmt(f.mean_after, 4)});
-  md << t.to_markdown() << "\nChange of the mean peak magnitude: **" << pct(f.change)
-     << "** (paper: experiment +4.3 %, simulation +16.3 %).\n\n![torque](friction_torque.png)\n";
-  f.markdown = md.str();
+  f.markdown = fill_report("friction.md.in", {{"args", prefix_arg(s)},
+                                               {"scene", s.scene_prefix + "friction_change"},
+                                               {"mu_after", fmt(sc.ground.patches.front().mu, 2)},
+                                               {"cross_x", fmt(f.cross_x)},
+                                               {"duration", fmt(f.duration)},
+                                               {"integrator", describe_integ(s, sc)},
+                                               {"t_cross", secs(f.t_cross)},
+                                               {"peaks_before", std::to_string(p.before.size())},
+                                               {"peaks_after", std::to_string(p.after.size())},
+                                               {"mean_before", fmt(f.mean_before, 4)},
+                                               {"mean_after", fmt(f.mean_after, 4)},
+                                               {"change", pct(f.change)}});
   write_text(s.out_dir / "friction.md", f.markdown);
   return f;
 }
@@ -763,23 +773,8 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
 // ================================================================================================
 namespace {
 
-// The report's templates (tools/paper/paper_report*.md.in): the source tree's while it exists, else
-// the installed ones beside the figure scripts (runtime/deploy/CMakeLists.txt).
-fs::path report_template(const std::string& name) {
-  return tk::pick_figures_dir(PEDALWAVE_PAPER_SOURCE_DIR, tk::figures_dir()) / name;
-}
-
-// Fills a report template and lines up its tables; rows: the body rows of its first table.
-std::string fill_report(const std::string& name, const std::map<std::string, std::string>& values,
-                        std::size_t* rows) {
-  std::vector<std::size_t> per_table;
-  std::string md = tk::align_markdown_tables(tk::fill_template(report_template(name), values), &per_table);
-  if (rows) *rows = per_table.empty() ? 0 : per_table.front();
-  return md;
-}
-
 // The fitted scenes beside the shipped ones: the same measures from the same experiments
-// (paper_report_fitted.md.in; the paper's values are in the template, here only for the notes).
+// (report/fitted.md.in; the paper's values are in the template, here only for the notes).
 std::string fitted_table(const AllResult& r, std::size_t* rows) {
   const FittedResult& f = *r.fitted;
   auto at = [](const StairResult& st, double k_c) {
@@ -838,7 +833,7 @@ std::string fitted_table(const AllResult& r, std::size_t* rows) {
   if (notes.empty()) list = "Every fitted figure is the paper's within its tolerance.";
   for (const std::string& n : notes) list += (list.empty() ? "" : "\n") + ("- " + n);
   v["notes"] = list;
-  return fill_report("paper_report_fitted.md.in", v, rows);
+  return fill_report("fitted.md.in", v, rows);
 }
 
 // The fitted values of a scene, as one line (the identification's parameters).
@@ -856,7 +851,7 @@ std::string scene_parameters(const model::Scene& sc) {
 }  // namespace
 
 std::string paper_table(const AllResult& r, std::size_t* rows, std::size_t* fitted_rows) {
-  // The report's text is the template tools/paper/paper_report.md.in; here only the values.
+  // The report's text is the template tools/paper/report/table.md.in; here only the values.
   std::map<std::string, std::string> v;
   // Ranges of a measure over the sensitivity rows of one parameter (with the baseline).
   auto range = [&](const std::string& param, double SensitivityRow::*field, bool percent) {
@@ -982,7 +977,7 @@ std::string paper_table(const AllResult& r, std::size_t* rows, std::size_t* fitt
   v["grip_sweep.check_h"] = fmt(gs.options.check_h);
   v["grip_sweep.checks"] = check_list(gs);
 
-  std::string md = fill_report("paper_report.md.in", v, rows);
+  std::string md = fill_report("table.md.in", v, rows);
   if (fitted_rows) *fitted_rows = 0;
   if (r.fitted) md += '\n' + fitted_table(r, fitted_rows);
   return md;

@@ -7,7 +7,7 @@
 //   sensitivity  how the above move with the unpublished K and I_r (and two model options)
 //   all          everything and paper_table.md (paper's experiment | paper's simulation | ours)
 // Numbers are never hard-coded: the paper's values appear only as the reference column (in the
-// report's template, tools/paper/paper_report.md.in; PaperValues below for the fitted notes).
+// report's templates, tools/paper/report/*.md.in; PaperValues below for the fitted notes).
 #pragma once
 
 #include <optional>
@@ -216,7 +216,7 @@ struct AllResult {
 AllResult all(const Settings& s, const AllOptions& o);
 
 // The comparison table (Markdown, with a sentence per difference) from the results: the templates
-// tools/paper/paper_report.md.in and paper_report_fitted.md.in filled with the computed values
+// tools/paper/report/table.md.in and fitted.md.in filled with the computed values
 // (toolkit::TemplateError naming the template's line when they disagree).
 // With r.fitted, a second table follows: the paper's simulation, the shipped scenes and the fitted
 // ones side by side (fitted_rows: its rows).

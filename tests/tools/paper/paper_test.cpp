@@ -247,7 +247,7 @@ TEST_F(Paper, ParallelSweepGivesTheSameNumbersAsSerialAndItsBestIsItsTablesArgma
   EXPECT_NE(slurp(dir_ / "parallel" / "sweep.md").find("Best k_c = **"), std::string::npos);
 }
 
-// The report's templates (tools/paper/paper_report*.md.in) and the values the tool sets agree: every
+// The report's templates (tools/paper/report/table.md.in, fitted.md.in) and the values the tool sets agree: every
 // placeholder has a value and every value a placeholder (else a TemplateError naming the line),
 // also with no runs at all ("—" in every cell), and the tables keep their rows.
 TEST(PaperReport, TheTemplatesAndTheToolsValuesAgree) {

@@ -142,6 +142,17 @@ fs::path report_template(const std::string& name) {
   return tk::pick_figures_dir(fs::path(PEDALWAVE_PAPER_SOURCE_DIR) / "report", tk::figures_dir() / "paper_report") / name;
 }
 
+// One Markdown table row ("| a | b |", '|' in a cell escaped) for a template's {{rows}}.
+std::string markdown_row(const std::vector<std::string>& cells) {
+  std::string out = "|";
+  for (const std::string& c : cells) {
+    out += ' ';
+    for (char ch : c) out += ch == '|' ? std::string("\\|") : std::string(1, ch);
+    out += " |";
+  }
+  return out;
+}
+
 // Fills a report template and lines up its tables; rows: the body rows of its first table.
 std::string fill_report(const std::string& name, const std::map<std::string, std::string>& values,
                         std::size_t* rows = nullptr) {
@@ -700,6 +711,7 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
   const auto res = run_all(s, specs, "sensitivity");
   tk::Table t({"parameter", "value", "flat v (0.82)", "flat v (0.40)", "friction gain", "torque-peak change",
                "stair v k_c=0", "stair v k_c=" + fmt(o.k_c), "stair gain", "body past (0 / " + fmt(o.k_c) + ")"});
+  std::string md_rows;  // the same rows for the report's template
   for (std::size_t i = 0; i < vars.size(); ++i) {
     const RunResult* r = &res[i * kRuns];
     SensitivityRow row;
@@ -722,24 +734,26 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
     std::string bad;
     for (int k = 0; k < kRuns; ++k)
       if (r[k].status != model::StepStatus::kOk) bad += " run " + std::to_string(k) + " " + std::string(model::to_string(r[k].status));
-    t.add_row({row.parameter, row.value + (bad.empty() ? "" : " (STOPPED:" + bad + ")"), cms(row.v_high),
-               cms(row.v_low), pct(row.gain),
-               pct(row.peak_change) + " (" + std::to_string(row.peaks_before) + "/" + std::to_string(row.peaks_after) + " peaks)",
-               cms(row.stair_v0), cms(row.stair_vkc),
-               pct(row.stair_gain), secs(row.past0) + " / " + secs(row.pastkc)});
+    std::vector<std::string> cells{row.parameter, row.value + (bad.empty() ? "" : " (STOPPED:" + bad + ")"),
+                                   cms(row.v_high), cms(row.v_low), pct(row.gain),
+                                   pct(row.peak_change) + " (" + std::to_string(row.peaks_before) + "/" +
+                                       std::to_string(row.peaks_after) + " peaks)",
+                                   cms(row.stair_v0), cms(row.stair_vkc), pct(row.stair_gain),
+                                   secs(row.past0) + " / " + secs(row.pastkc)};
+    md_rows += (md_rows.empty() ? "" : "\n") + markdown_row(cells);
+    t.add_row(std::move(cells));
     out.rows.push_back(row);
   }
   log(s) << t.to_text();
-  std::ostringstream md;
-  md << "### Sensitivity to the unpublished parameters (`pedalwave_paper sensitivity`)\n\n"
-     << "One parameter at a time from the baseline (model-spec.md §8: K = " << fmt(K0) << " N·m/rad, I_r = "
-     << fmt(Ir0) << " kg·m²); the last rows switch one model option instead. Flat and stair runs "
-     << fmt(o.flat_duration) << " s / " << fmt(o.stair_duration) << " s, friction " << fmt(fr_dur) << " s, "
-     << "flat and friction: " << describe_integ(s, hi) << ", stair: " << describe_integ(s, st) << ". *friction gain* = v(0.82)/v(0.40) − 1 (paper +20.3 % exp., +13.7 % sim.); "
-     << "*torque-peak change* (paper +4.3 % / +16.3 %; peaks before/after the crossing in brackets); *stair gain* = v(k_c = " << fmt(o.k_c)
-     << ")/v(0) − 1 (paper +24.8 %); *body past*: the whole body beyond the box's far edge.\n\n"
-     << t.to_markdown();
-  out.markdown = md.str();
+  out.markdown = fill_report("sensitivity.md.in", {{"K0", fmt(K0)},
+                                                  {"I_r0", fmt(Ir0)},
+                                                  {"flat_duration", fmt(o.flat_duration)},
+                                                  {"stair_duration", fmt(o.stair_duration)},
+                                                  {"friction_duration", fmt(fr_dur)},
+                                                  {"flat_integrator", describe_integ(s, hi)},
+                                                  {"stair_integrator", describe_integ(s, st)},
+                                                  {"k_c", fmt(o.k_c)},
+                                                  {"rows", md_rows}});
   write_text(s.out_dir / "sensitivity.md", out.markdown);
 
   if (s.plots) {

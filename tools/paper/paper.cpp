@@ -626,40 +626,51 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
     write_figure(s, "sweep_speed", std::move(spec));
     draw(s, {"sweep_speed"});
   }
-  std::ostringstream md;
-  md << "### k_c sweep (`pedalwave_paper sweep" << stair_arg(s) << "`)\n\n"
-     << grid.size() << " runs over the stair (scene `" << s.stair_scene << "`), k_c = " << fmt(o.from) << " … " << fmt(o.to) << " step "
-     << fmt(o.step) << ", " << fmt(o.duration) << " s each, " << describe_integ(s, sc) << ", "
-     << (s.campaign.backend == campaign::Backend::slurm
-             ? "as Slurm job arrays (" + std::to_string(s.campaign.slurm.chunk) + " runs per task)"
-             : "on " + std::to_string(s.jobs) + " threads")
-     << ": wall **" << fmt(out.wall_s, 3) << " s**, CPU " << fmt(out.cpu_s, 3)
-     << " s, real-time factor " << fmt(out.realtime_factor, 3) << " (simulated s per wall s).\n\n";
+  // The report (report/sweep.md.in; the best and the accuracy check are their own templates, left
+  // out when there is none).
+  std::string best, checks, rows;
   if (have_best)
-    md << "Best k_c = **" << fmt(out.points[out.best].k_c) << "**: " << cms(out.points[out.best].speed)
-       << " against " << cms(out.v0) << " at k_c = 0, gain **" << pct(out.gain)
-       << "** (paper: best 10.1, +24.8 %). Whole body past the box within the run for " << past
-       << " of " << out.points.size() << " k_c values.\n\n";
+    best = fill_report("sweep_best.md.in", {{"k_c", fmt(out.points[out.best].k_c)},
+                                            {"speed", cms(out.points[out.best].speed)},
+                                            {"v0", cms(out.v0)},
+                                            {"gain", pct(out.gain)},
+                                            {"past", std::to_string(past)},
+                                            {"points", std::to_string(out.points.size())}});
   if (!out.checks.empty()) {
-    md << "Accuracy of the sweep's integrator: the same runs at h = " << fmt(o.check_h) << " s:\n\n";
-    tk::Table t({"k_c", "h = " + fmt(integ_of(s, sc).h) + " s", "h = " + fmt(o.check_h) + " s", "Δ [cm/s]"});
     for (const SweepCheck& c : out.checks)
-      t.add_row({fmt(c.k_c), cms(c.speed), cms(c.speed_fine), fixed((c.speed - c.speed_fine) * 100, 3)});
-    md << t.to_markdown() << '\n';
+      rows += (rows.empty() ? "" : "\n") + markdown_row({fmt(c.k_c), cms(c.speed), cms(c.speed_fine),
+                                                         fixed((c.speed - c.speed_fine) * 100, 3)});
+    checks = fill_report("sweep_checks.md.in",
+                         {{"check_h", fmt(o.check_h)}, {"h", fmt(integ_of(s, sc).h)}, {"rows", rows}});
+    rows.clear();
   }
-  {
-    tk::Table t({"k_c", "speed", "head on top", "whole body past"});
-    for (const SweepPoint& p : out.points) {
-      const double frac = p.k_c - std::floor(p.k_c + 1e-9);
-      const bool integer = std::abs(frac) < 1e-6;
-      if (integer || &p == &out.points[std::min(out.best, out.points.size() - 1)])
-        t.add_row({fmt(p.k_c) + (&p == &out.points[out.best] ? " (best)" : ""), cms(p.speed),
-                   secs(p.stair.t_head_on_top), secs(p.stair.t_body_past)});
-    }
-    md << "Every whole k_c and the best (all points: `sweep.csv`):\n\n" << t.to_markdown()
-       << "\n![sweep](sweep_speed.png)\n";
+  for (const SweepPoint& p : out.points) {
+    const double frac = p.k_c - std::floor(p.k_c + 1e-9);
+    const bool integer = std::abs(frac) < 1e-6;
+    if (integer || &p == &out.points[std::min(out.best, out.points.size() - 1)])
+      rows += (rows.empty() ? "" : "\n") + markdown_row({fmt(p.k_c) + (&p == &out.points[out.best] ? " (best)" : ""),
+                                                         cms(p.speed), secs(p.stair.t_head_on_top),
+                                                         secs(p.stair.t_body_past)});
   }
-  out.markdown = md.str();
+  out.markdown = fill_report(
+      "sweep.md.in",
+      {{"args", stair_arg(s)},
+       {"runs", std::to_string(grid.size())},
+       {"scene", s.stair_scene},
+       {"from", fmt(o.from)},
+       {"to", fmt(o.to)},
+       {"step", fmt(o.step)},
+       {"duration", fmt(o.duration)},
+       {"integrator", describe_integ(s, sc)},
+       {"where", s.campaign.backend == campaign::Backend::slurm
+                     ? "as Slurm job arrays (" + std::to_string(s.campaign.slurm.chunk) + " runs per task)"
+                     : "on " + std::to_string(s.jobs) + " threads"},
+       {"wall_s", fmt(out.wall_s, 3)},
+       {"cpu_s", fmt(out.cpu_s, 3)},
+       {"realtime_factor", fmt(out.realtime_factor, 3)},
+       {"best", best},
+       {"checks", checks},
+       {"rows", rows}});
   write_text(s.out_dir / "sweep.md", out.markdown);
   return out;
 }

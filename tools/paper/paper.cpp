@@ -7,6 +7,7 @@
 #include <fstream>
 #include <iostream>
 #include <functional>
+#include <iomanip>
 #include <limits>
 #include <map>
 #include <sstream>
@@ -443,7 +444,7 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
   }
   const StairEvents& e0 = out.cases.front().run.stair;
   log(s) << "  box x = " << fmt(e0.x_near) << " … " << fmt(e0.x_far) << " m, top z = " << fmt(e0.top) << " m\n";
-  tk::Table t({"k_c", "avg speed", "head on top", "COM past far edge", "whole body past", "max head z", "run"});
+  std::string rows;  // the report's table (report/stair.md.in)
   for (const StairCase& c : out.cases) {
     const RunResult& r = c.run;
     log(s) << "  k_c = " << std::setw(5) << fmt(c.k_c) << ": speed " << cms(r.avg_speed) << ", head on top "
@@ -451,9 +452,10 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
            << secs(r.stair.t_body_past) << ", max head z " << fmt(r.stair.max_head_z * 100, 3) << " cm"
            << (r.status == model::StepStatus::kOk ? "" : std::string(", STOPPED: ") + std::string(model::to_string(r.status)))
            << '\n';
-    t.add_row({fmt(c.k_c), cms(r.avg_speed), secs(r.stair.t_head_on_top), secs(r.stair.t_com_past),
-               secs(r.stair.t_body_past), fmt(r.stair.max_head_z * 100, 3) + " cm",
-               r.status == model::StepStatus::kOk ? "ok" : std::string(model::to_string(r.status))});
+    rows += (rows.empty() ? "" : "\n") +
+            markdown_row({fmt(c.k_c), cms(r.avg_speed), secs(r.stair.t_head_on_top), secs(r.stair.t_com_past),
+                          secs(r.stair.t_body_past), fmt(r.stair.max_head_z * 100, 3) + " cm",
+                          r.status == model::StepStatus::kOk ? "ok" : std::string(model::to_string(r.status))});
   }
   if (out.cases.size() >= 2) {
     const double g = out.cases[1].run.avg_speed / out.cases[0].run.avg_speed - 1.0;
@@ -463,9 +465,11 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
   std::vector<std::string> hh{"box height"};
   for (double k : k_c) hh.push_back("k_c = " + fmt(k) + ": speed, whole body past");
   tk::Table ht(hh);
+  std::string height_rows;
   for (const StairHeight& h : out.heights) {
     std::vector<std::string> cells{fmt(h.height * 100) + " cm"};
     for (std::size_t i = 0; i < k_c.size(); ++i) cells.push_back(cms(h.speed[i]) + ", " + secs(h.t_body_past[i]));
+    height_rows += (height_rows.empty() ? "" : "\n") + markdown_row(cells);
     ht.add_row(cells);
   }
   if (!out.heights.empty()) log(s) << "  box-height scan (same scene, lower boxes):\n" << ht.to_text();
@@ -485,23 +489,29 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
     names.push_back("stair_progress");
     draw(s, names);
   }
-  std::ostringstream md;
-  md << "### Stair (`pedalwave_paper stair" << stair_arg(s) << "`, scene `" << s.scene_prefix << s.stair_scene << "`)\n\n"
-     << "Box " << fmt((e0.x_far - e0.x_near) * 100) << " cm wide, " << fmt(e0.top * 100)
-     << " cm high, x = " << fmt(e0.x_near) << " … " << fmt(e0.x_far) << " m (5 cm ahead of the head); "
-     << fmt(duration) << " s, " << describe_integ(s, sc) << ". *Head on top*: the head tip over the top "
-     << "face, touching it (x within the box, z within top − " << fmt(kOnTopBelow * 100) << " cm … top + "
-     << fmt(kOnTopAbove * 100) << " cm). *COM past*: the "
-     << "COM beyond the far edge. *Whole body past*: all 2N+1 body points beyond the far edge. "
-     << "Speed: COM x from t = " << fmt(out.cases.front().run.avg_from) << " s.\n\n"
-     << t.to_markdown() << '\n';
+  // The report (report/stair.md.in; the box-height scan and each case's figures are their own
+  // templates).
+  std::string height_scan, figures;
   if (!out.heights.empty())
-    md << "The same runs over lower boxes (which height can the robot climb?):\n\n" << ht.to_markdown() << '\n';
+    height_scan = fill_report("stair_heights.md.in",
+                          {{"header", markdown_row(hh) + "\n" + markdown_row(std::vector<std::string>(hh.size(), "---"))},
+                           {"rows", height_rows}});
   for (const StairCase& c : out.cases)
-    md << "![k_c = " << fmt(c.k_c) << "](stair_shapes_" << kc_tag(c.k_c) << ".png)\n"
-       << "![k_c = " << fmt(c.k_c) << " film](stair_film_" << kc_tag(c.k_c) << ".png)\n";
-  md << "![progress](stair_progress.png)\n";
-  out.markdown = md.str();
+    figures += fill_report("stair_figures.md.in", {{"k_c", fmt(c.k_c)}, {"tag", kc_tag(c.k_c)}});
+  out.markdown = fill_report("stair.md.in", {{"args", stair_arg(s)},
+                                             {"scene", s.scene_prefix + s.stair_scene},
+                                             {"width_cm", fmt((e0.x_far - e0.x_near) * 100)},
+                                             {"height_cm", fmt(e0.top * 100)},
+                                             {"x_near", fmt(e0.x_near)},
+                                             {"x_far", fmt(e0.x_far)},
+                                             {"duration", fmt(duration)},
+                                             {"integrator", describe_integ(s, sc)},
+                                             {"on_top_below_cm", fmt(kOnTopBelow * 100)},
+                                             {"on_top_above_cm", fmt(kOnTopAbove * 100)},
+                                             {"avg_from", fmt(out.cases.front().run.avg_from)},
+                                             {"rows", rows},
+                                             {"heights", height_scan},
+                                             {"figures", figures}});
   write_text(s.out_dir / "stair.md", out.markdown);
   return out;
 }

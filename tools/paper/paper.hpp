@@ -1,5 +1,6 @@
-// The paper's experiments (model-spec.md §9), each a function that runs, writes its figures
-// (SVG + PNG) and a Markdown fragment into Settings::out_dir, prints its numbers and returns them:
+// The paper's experiments (model-spec.md §9), each a function that runs, writes its figures' data
+// (drawn by tools/figures/paper.py) and a Markdown fragment (from its template in
+// tools/paper/report/) into Settings::out_dir, prints its numbers and returns them:
 //   flat         average forward speed at μ = 0.82 and μ = 0.40, their ratio
 //   friction     head-joint SEA torque over the friction change (the paper's Fig. 7), peak change
 //   stair        k_c = 0 against k_c = 10.1 over the stair: climb events, speed, shapes (Fig. 10)

@@ -19,10 +19,13 @@
 #include "harness.hpp"
 #include "pedalwave/campaign/campaign.hpp"
 #include "pedalwave/campaign/cli.hpp"
+#include "pedalwave/toolkit/format.hpp"
+#include "pedalwave/toolkit/table.hpp"
 
 using namespace pedalwave;
 using faultbench::LoopOptions;
 namespace campaign = pedalwave::campaign;
+namespace tk = pedalwave::toolkit;
 
 namespace {
 
@@ -46,14 +49,17 @@ int calibrate(double minutes, int jobs) {
     st[static_cast<std::size_t>(i)] =
         faultbench::run_nominal(faultbench::shipped_scene(cases[static_cast<std::size_t>(i)].scene), o, minutes * 60.0);
   });
-  std::printf("| scene | k_c | s | max r [N·m] | rms r | max c [rad] | max sat | hold β | hold def | alarms | first |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+  tk::Table t({"scene", "k_c", "s", "max r [N·m]", "rms r", "max c [rad]", "max sat", "hold β", "hold def", "alarms",
+              "first"});
   for (std::size_t i = 0; i < cases.size(); ++i) {
     const auto& s = st[i];
-    std::printf("| %s | %g | %.0f | %.4g | %.3g | %.3g | %.3g | %d | %d | %d | %s j%d t=%.2f v=%.3g |\n", cases[i].scene,
-                cases[i].k_c, s.seconds, s.max_residual, s.rms_residual, s.max_consistency,
-                s.max_saturation, s.max_hold_beta, s.max_hold_defl, s.alarms,
-                faultbench::class_name(s.first), s.first_joint, s.first_t, s.first_value);
+    t.add_row({cases[i].scene, tk::sig(cases[i].k_c), tk::fixed(s.seconds, 0), tk::sig(s.max_residual, 4),
+               tk::sig(s.rms_residual, 3), tk::sig(s.max_consistency, 3), tk::sig(s.max_saturation, 3),
+               std::to_string(s.max_hold_beta), std::to_string(s.max_hold_defl), std::to_string(s.alarms),
+               std::string(faultbench::class_name(s.first)) + " j" + std::to_string(s.first_joint) +
+                   " t=" + tk::fixed(s.first_t, 2) + " v=" + tk::sig(s.first_value, 3)});
   }
+  std::printf("%s", t.to_markdown().c_str());
   return 0;
 }
 
@@ -236,16 +242,6 @@ std::string threshold_of(model::FaultType f, const observer::ObserverParams& p) 
   return b;
 }
 
-// A Markdown table cell: '|' inside the text must be escaped or it splits the cell.
-std::string cell(const std::string& text) {
-  std::string out;
-  for (char c : text) {
-    if (c == '|') out += '\\';
-    out += c;
-  }
-  return out;
-}
-
 double quantile(std::vector<double> v, double q) {
   if (v.empty()) return NAN;
   std::sort(v.begin(), v.end());
@@ -254,8 +250,8 @@ double quantile(std::vector<double> v, double q) {
 
 void print_campaign(const std::vector<Trial>& all) {
   const auto p = faultbench::campaign_params(faultbench::shipped_scene("flat_high_friction"));
-  std::printf("| fault (injected) | named class | residual / check | threshold | detected | latency median [ms] | latency max [ms] | isolation (class + joint) |\n");
-  std::printf("|---|---|---|---|---|---|---|---|\n");
+  tk::Table tab({"fault (injected)", "named class", "residual / check", "threshold", "detected", "latency median [ms]",
+              "latency max [ms]", "isolation (class + joint)"});
   for (int f = 0; f < static_cast<int>(model::FaultType::kCount); ++f) {
     const auto type = static_cast<model::FaultType>(f);
     std::vector<double> lat;
@@ -270,11 +266,12 @@ void print_campaign(const std::vector<Trial>& all) {
       }
     }
     if (n == 0) continue;
-    std::printf("| %s | %s | %s | %s | %d/%d | %.0f | %.0f | %d/%d (%.0f %%) |\n",
-                std::string(model::to_string(type)).c_str(), faultbench::class_name(faultbench::expected_class(type)),
-                cell(check_of(type)).c_str(), cell(threshold_of(type, p)).c_str(), det, n, quantile(lat, 0.5), quantile(lat, 1.0),
-                iso, n, 100.0 * iso / std::max(1, n));
+    tab.add_row({std::string(model::to_string(type)), faultbench::class_name(faultbench::expected_class(type)),
+               check_of(type), threshold_of(type, p), std::to_string(det) + "/" + std::to_string(n),
+               tk::fixed(quantile(lat, 0.5), 0), tk::fixed(quantile(lat, 1.0), 0),
+               std::to_string(iso) + "/" + std::to_string(n) + " (" + tk::fixed(100.0 * iso / std::max(1, n), 0) + " %)"});
   }
+  std::printf("%s", tab.to_markdown().c_str());
 }
 
 struct NominalCase { const char* scene; double k_c; };
@@ -298,21 +295,23 @@ void nominal(double minutes, int jobs) {
   });
   double total = 0.0;
   int alarms = 0;
-  std::printf("| nominal run (noise on, u_max = 0.8 N·m) | k_c | simulated [min] | false alarms | max \\|r\\| [N·m] | max \\|c\\| [rad] | longest hold β / def [cycles] | max saturation LP |\n");
-  std::printf("|---|---|---|---|---|---|---|---|\n");
+  tk::Table t({"nominal run (noise on, u_max = 0.8 N·m)", "k_c", "simulated [min]", "false alarms", "max |r| [N·m]",
+              "max |c| [rad]", "longest hold β / def [cycles]", "max saturation LP"});
   for (std::size_t i = 0; i < cases.size(); ++i) {
     const auto& s = st[i];
     total += s.seconds;
     alarms += s.alarms;
-    std::printf("| %s | %g | %.1f | %d%s%s | %.4f | %.1e | %d / %d | %.3f |\n", cases[i].scene, cases[i].k_c,
-                s.seconds / 60.0, s.alarms, s.alarms ? " first: " : "", s.alarms ? faultbench::class_name(s.first) : "",
-                s.max_residual, s.max_consistency, s.max_hold_beta, s.max_hold_defl, s.max_saturation);
+    t.add_row({cases[i].scene, tk::sig(cases[i].k_c), tk::fixed(s.seconds / 60.0, 1),
+               std::to_string(s.alarms) + (s.alarms ? std::string(" first: ") + faultbench::class_name(s.first) : ""),
+               tk::fixed(s.max_residual, 4), tk::sci(s.max_consistency, 1),
+               std::to_string(s.max_hold_beta) + " / " + std::to_string(s.max_hold_defl), tk::fixed(s.max_saturation, 3)});
   }
+  std::printf("%s", t.to_markdown().c_str());
   std::printf("\n**False alarms: %d over %.2f nominal hours simulated.**\n", alarms, total / 3600.0);
 }
 
 void timing(int cycles) {
-  std::printf("| N | joints | observe() median [µs] | p99 [µs] | max [µs] | without body model median [µs] |\n|---|---|---|---|---|---|\n");
+  tk::Table t({"N", "joints", "observe() median [µs]", "p99 [µs]", "max [µs]", "without body model median [µs]"});
   for (int N : {6, 24}) {
     model::Scene s = faultbench::shipped_scene("flat_high_friction");
     s.robot = model::paper_params(N);
@@ -344,13 +343,15 @@ void timing(int cycles) {
       med[body] = quantile(us, 0.5);
       if (body == 1) p99 = quantile(us, 0.99), mx = quantile(us, 1.0);
     }
-    std::printf("| %d | %d | %.1f | %.1f | %.1f | %.1f |\n", N, N - 1, med[1], p99, mx, med[0]);
+    t.add_row({std::to_string(N), std::to_string(N - 1), tk::fixed(med[1], 1), tk::fixed(p99, 1), tk::fixed(mx, 1),
+               tk::fixed(med[0], 1)});
   }
+  std::printf("%s", t.to_markdown().c_str());
 }
 
 // The motor rows' neglected coupling n I_r θ̈_j (θ_j = the stator link's absolute angle), from the
 // plant's true state differenced at the cycle rate: max and rms over a run.
-void coupling(const char* scene, double seconds) {
+std::vector<std::string> coupling(const char* scene, double seconds) {
   LoopOptions o;
   o.noise = false;
   faultbench::FaultLoop loop(faultbench::shipped_scene(scene), o);
@@ -379,7 +380,7 @@ void coupling(const char* scene, double seconds) {
       ++n;
     }
   }
-  std::printf("| %s | %.2e | %.2e |\n", scene, mx, std::sqrt(s2 / static_cast<double>(n)));
+  return {scene, tk::sci(mx, 2), tk::sci(std::sqrt(s2 / static_cast<double>(n)), 2)};
 }
 
 int main(int argc, char** argv) {
@@ -419,8 +420,9 @@ int main(int argc, char** argv) {
     if (trace_s > 0) return trace(trace_s, !no_noise);
     if (calib) return calibrate(minutes, jobs);
     if (coupling_s > 0) {
-      std::printf("| scene | max \\|n I_r θ̈_j\\| [N·m] | rms [N·m] |\n|---|---|---|\n");
-      for (const char* sc : {"flat_high_friction", "stair"}) coupling(sc, coupling_s);
+      pedalwave::toolkit::Table t({"scene", "max |n I_r θ̈_j| [N·m]", "rms [N·m]"});
+      for (const char* sc : {"flat_high_friction", "stair"}) t.add_row(coupling(sc, coupling_s));
+      std::printf("%s", t.to_markdown().c_str());
       return 0;
     }
     if (trials <= 0 && nominal_minutes <= 0 && timing_cycles <= 0) {

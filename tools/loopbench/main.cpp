@@ -53,6 +53,8 @@
 #include "pedalwave/runtime/runtime.hpp"
 #include "pedalwave/telemetry/dds_telemetry.hpp"
 #include "pedalwave/telemetry/subscriber.hpp"
+#include "pedalwave/toolkit/format.hpp"
+#include "pedalwave/toolkit/table.hpp"
 
 extern char** environ;
 
@@ -383,41 +385,43 @@ std::string label(const PhaseResult& p) {
 }
 
 void print_tables(const Options& o, const std::vector<PhaseResult>& rs) {
-  std::printf("\n### Loop timing (µs), telemetry off vs on\n\n");
-  std::printf("| N−1 | telemetry | cycles | wake p50 | wake p99 | wake p99.9 | wake max | compute p50 | compute p99 | compute p99.9 | compute max | cycle incl. plant p50 | p99 | p99.9 | max | overruns | ring drops (cycle / event) |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  namespace tk = pedalwave::toolkit;
+  auto t1 = [](std::int64_t ns) { return tk::fixed(us(ns), 1); };
+  auto count = [](auto n) { return std::to_string(static_cast<unsigned long long>(n)); };
+  tk::Table timing({"N−1", "telemetry", "cycles", "wake p50", "wake p99", "wake p99.9", "wake max", "compute p50",
+                    "compute p99", "compute p99.9", "compute max", "cycle incl. plant p50", "p99", "p99.9", "max",
+                    "overruns", "ring drops (cycle / event)"});
   for (const auto& p : rs) {
     const auto& m = *p.m;
     const auto& c = *p.ours;
-    std::printf("| %d | %s | %llu | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %llu | %llu / %llu |\n",
-                p.joints, label(p).c_str(), static_cast<unsigned long long>(m.cycles),
-                us(m.wake.percentile(0.5)), us(m.wake.percentile(0.99)), us(m.wake.percentile(0.999)),
-                us(m.wake.max()), us(c.percentile(0.5)), us(c.percentile(0.99)), us(c.percentile(0.999)),
-                us(c.max()), us(m.cycle.percentile(0.5)), us(m.cycle.percentile(0.99)),
-                us(m.cycle.percentile(0.999)), us(m.cycle.max()), static_cast<unsigned long long>(m.overruns),
-                static_cast<unsigned long long>(p.run.cycle_drops),
-                static_cast<unsigned long long>(p.run.event_drops));
+    timing.add_row({std::to_string(p.joints), label(p), count(m.cycles), t1(m.wake.percentile(0.5)),
+                    t1(m.wake.percentile(0.99)), t1(m.wake.percentile(0.999)), t1(m.wake.max()), t1(c.percentile(0.5)),
+                    t1(c.percentile(0.99)), t1(c.percentile(0.999)), t1(c.max()), t1(m.cycle.percentile(0.5)),
+                    t1(m.cycle.percentile(0.99)), t1(m.cycle.percentile(0.999)), t1(m.cycle.max()),
+                    count(m.overruns), count(p.run.cycle_drops) + " / " + count(p.run.event_drops)});
   }
-  std::printf("\n### Telemetry at the subscriber (child process) and CPU cost\n\n");
-  std::printf("| N−1 | telemetry | state samples published/s | received/s | loss | process CPU [ms/s] | loop thread CPU [ms/s] | rest (consumer, DDS) [ms/s] |\n");
-  std::printf("|---|---|---|---|---|---|---|---|\n");
+  std::printf("\n### Loop timing (µs), telemetry off vs on\n\n%s", timing.to_markdown().c_str());
+  tk::Table telemetry({"N−1", "telemetry", "state samples published/s", "received/s", "loss", "process CPU [ms/s]",
+                       "loop thread CPU [ms/s]", "rest (consumer, DDS) [ms/s]"});
   for (const auto& p : rs) {
     const double sent = static_cast<double>(p.sent.joint_state + p.sent.controller_state +
                                             p.sent.observer_state + p.sent.loop_timing);
     const double recv = static_cast<double>(p.received.state());
     const double proc = 1e3 * p.process_cpu / p.wall_s, loopc = 1e3 * p.loop_cpu / p.wall_s;
+    const std::string cpu[3] = {tk::fixed(proc, 1), tk::fixed(loopc, 1), tk::fixed(proc - loopc, 1)};
     if (p.decimation == 0) {
-      std::printf("| %d | off | – | – | – | %.1f | %.1f | %.1f |\n", p.joints, proc, loopc, proc - loopc);
+      telemetry.add_row({std::to_string(p.joints), "off", "–", "–", "–", cpu[0], cpu[1], cpu[2]});
     } else if (!o.subscriber) {
-      std::printf("| %d | %s | %.0f | (no subscriber) | – | %.1f | %.1f | %.1f |\n", p.joints, label(p).c_str(),
-                  sent / p.wall_s, proc, loopc, proc - loopc);
+      telemetry.add_row({std::to_string(p.joints), label(p), tk::fixed(sent / p.wall_s, 0), "(no subscriber)", "–",
+                         cpu[0], cpu[1], cpu[2]});
     } else {
-      std::printf("| %d | %s | %.0f | %.0f | %.3f %% | %.1f | %.1f | %.1f |%s\n", p.joints,
-                  label(p).c_str(), sent / p.wall_s, recv / p.wall_s,
-                  sent > 0 ? 100.0 * (1.0 - recv / sent) : 0.0, proc, loopc, proc - loopc,
-                  p.subscriber_matched ? "" : " (subscriber NOT matched before the start)");
+      telemetry.add_row({std::to_string(p.joints),
+                         label(p) + (p.subscriber_matched ? "" : " (subscriber NOT matched before the start)"),
+                         tk::fixed(sent / p.wall_s, 0), tk::fixed(recv / p.wall_s, 0),
+                         tk::fixed(sent > 0 ? 100.0 * (1.0 - recv / sent) : 0.0, 3) + " %", cpu[0], cpu[1], cpu[2]});
     }
   }
+  std::printf("\n### Telemetry at the subscriber (child process) and CPU cost\n\n%s", telemetry.to_markdown().c_str());
   std::printf("\nwake = actual wake-up − deadline. compute = read + observe + control of each cycle (our code,\n"
               "from the cycle samples). cycle incl. plant = wake-up → end of publish, including the sim\n"
               "driver's write, which advances the lockstep plant one period.\n"

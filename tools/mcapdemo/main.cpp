@@ -37,6 +37,7 @@
 #include "pedalwave/mcap/ros2msg.hpp"
 #include "pedalwave/mcap/writer.hpp"
 #include "pedalwave/toolkit/cli.hpp"
+#include "pedalwave/toolkit/format.hpp"
 #include "pedalwave/toolkit/json.hpp"
 
 namespace mcap = pedalwave::mcap;
@@ -73,11 +74,7 @@ mcap::MsgMapLookup definitions() {
   return l;
 }
 
-std::string num(double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.17g", v);
-  return b;
-}
+std::string num(double v) { return pedalwave::toolkit::sig(v, 17); }
 std::string time_json(std::int64_t ns) {
   const std::int64_t sec = ns >= 0 ? ns / 1'000'000'000 : -((-ns + 999'999'999) / 1'000'000'000);
   const std::int64_t nsec = ns - sec * 1'000'000'000;

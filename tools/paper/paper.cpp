@@ -5,18 +5,21 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
-#include <iomanip>
 #include <iostream>
 #include <functional>
+#include <iomanip>
 #include <limits>
+#include <map>
 #include <sstream>
 #include <stdexcept>
 
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/toolkit/csv.hpp"
 #include "pedalwave/toolkit/figures.hpp"
+#include "pedalwave/toolkit/format.hpp"
 #include "pedalwave/toolkit/json.hpp"
 #include "pedalwave/toolkit/progress.hpp"
+#include "pedalwave/toolkit/report_template.hpp"
 #include "pedalwave/toolkit/table.hpp"
 
 namespace pedalwave::paper {
@@ -28,19 +31,10 @@ namespace {
 
 std::ostream& log(const Settings& s) { return s.log ? *s.log : std::cout; }
 
-std::string fmt(double v, int precision = 3) {
-  if (std::isnan(v)) return "—";
-  std::ostringstream os;
-  os << std::setprecision(precision) << v;
-  return os.str();
-}
+// The toolkit's formatter (toolkit/format.hpp), "—" for a missing value.
+std::string fmt(double v, int precision = 3) { return std::isnan(v) ? "—" : tk::sig(v, precision); }
 // Fixed decimals.
-std::string fixed(double v, int decimals) {
-  if (std::isnan(v)) return "—";
-  std::ostringstream os;
-  os << std::fixed << std::setprecision(decimals) << v;
-  return os.str();
-}
+std::string fixed(double v, int decimals) { return std::isnan(v) ? "—" : tk::fixed(v, decimals); }
 // Speed in cm/s: 2 decimals, 3 below 1 cm/s (the stair's stuck runs differ in the third).
 std::string cms(double v) {
   if (std::isnan(v)) return "—";
@@ -141,6 +135,32 @@ RunSpec make_spec(const Settings& s, model::Scene scene, double duration, double
   r.rate_hz = s.rate_hz;
   r.sample_every = sample_every;
   return r;
+}
+
+// The report's templates (tools/paper/report/*.md.in): the source tree's while it exists, else the
+// installed ones beside the figure scripts, <figures>/paper_report (runtime/deploy/CMakeLists.txt).
+fs::path report_template(const std::string& name) {
+  return tk::pick_figures_dir(fs::path(PEDALWAVE_PAPER_SOURCE_DIR) / "report", tk::figures_dir() / "paper_report") / name;
+}
+
+// One Markdown table row ("| a | b |", '|' in a cell escaped) for a template's {{rows}}.
+std::string markdown_row(const std::vector<std::string>& cells) {
+  std::string out = "|";
+  for (const std::string& c : cells) {
+    out += ' ';
+    for (char ch : c) out += ch == '|' ? std::string("\\|") : std::string(1, ch);
+    out += " |";
+  }
+  return out;
+}
+
+// Fills a report template and lines up its tables; rows: the body rows of its first table.
+std::string fill_report(const std::string& name, const std::map<std::string, std::string>& values,
+                        std::size_t* rows = nullptr) {
+  std::vector<std::size_t> per_table;
+  std::string md = tk::align_markdown_tables(tk::fill_template(report_template(name), values), &per_table);
+  if (rows) *rows = per_table.empty() ? 0 : per_table.front();
+  return md;
 }
 
 // ---- The figures' data: <out>/data/<figure>.json (what tools/figures/paper.py draws, its kind and
@@ -300,18 +320,14 @@ FlatResult flat(const Settings& s, double duration) {
     write_figure(s, "flat_com", tk::Json::object().set("kind", "flat_com").set("avg_from", f.avg_from).set("runs", std::move(runs)));
     draw(s, {"flat_com"});
   }
-  std::ostringstream md;
-  md << "### Flat ground (`pedalwave_paper flat" << prefix_arg(s) << "`)\n\n"
-     << "Average forward speed of the whole-robot COM over t = " << fmt(f.avg_from) << " … "
-     << fmt(duration) << " s (the first gait period 2π/ω = " << fmt(f.avg_from)
-     << " s excluded), open-loop gait (k_c = 0), " << describe(specs[0].integ) << ", control " << fmt(s.rate_hz)
-     << " Hz.\n\n";
-  tk::Table t({"case", "paper's experiment", "paper's simulation", "ours"});
-  t.add_row({"speed, μ = 0.82", "2.40 cm/s", "2.18 cm/s", cms(f.v_high)});
-  t.add_row({"speed, μ = 0.40", "—", "—", cms(f.v_low)});
-  t.add_row({"gain 0.82 over 0.40", "+20.3 %", "+13.7 %", pct(f.gain)});
-  md << t.to_markdown() << "\n![COM x](flat_com.png)\n";
-  f.markdown = md.str();
+  f.markdown = fill_report("flat.md.in", {{"args", prefix_arg(s)},
+                                           {"avg_from", fmt(f.avg_from)},
+                                           {"duration", fmt(duration)},
+                                           {"integrator", describe(specs[0].integ)},
+                                           {"rate_hz", fmt(s.rate_hz)},
+                                           {"v_high", cms(f.v_high)},
+                                           {"v_low", cms(f.v_low)},
+                                           {"gain", pct(f.gain)}});
   write_text(s.out_dir / "flat.md", f.markdown);
   return f;
 }
@@ -355,19 +371,18 @@ FrictionResult friction(const Settings& s, double duration) {
     write_figure(s, "friction_torque", std::move(fig));
     draw(s, {"friction_torque"});
   }
-  std::ostringstream md;
-  md << "### Friction change (`pedalwave_paper friction" << prefix_arg(s) << "`)\n\n"
-     << "Scene `" << s.scene_prefix << "friction_change`: μ = 0.82, then " << fmt(sc.ground.patches.front().mu, 2) << " from x = "
-     << fmt(f.cross_x) << " m; " << fmt(f.duration) << " s, open-loop gait, " << describe_integ(s, sc)
-     << ". The head tip reaches the low-friction surface at t = " << secs(f.t_cross)
-     << ". Negative peaks of the head joint's SEA torque K(β − α) (one per gait period: the minimum "
-        "within ± half a period; the first period excluded):\n\n";
-  tk::Table t({"", "peaks", "mean |peak| [N·m]"});
-  t.add_row({"before the crossing", std::to_string(p.before.size()), fmt(f.mean_before, 4)});
-  t.add_row({"after the crossing", std::to_string(p.after.size()), fmt(f.mean_after, 4)});
-  md << t.to_markdown() << "\nChange of the mean peak magnitude: **" << pct(f.change)
-     << "** (paper: experiment +4.3 %, simulation +16.3 %).\n\n![torque](friction_torque.png)\n";
-  f.markdown = md.str();
+  f.markdown = fill_report("friction.md.in", {{"args", prefix_arg(s)},
+                                               {"scene", s.scene_prefix + "friction_change"},
+                                               {"mu_after", fmt(sc.ground.patches.front().mu, 2)},
+                                               {"cross_x", fmt(f.cross_x)},
+                                               {"duration", fmt(f.duration)},
+                                               {"integrator", describe_integ(s, sc)},
+                                               {"t_cross", secs(f.t_cross)},
+                                               {"peaks_before", std::to_string(p.before.size())},
+                                               {"peaks_after", std::to_string(p.after.size())},
+                                               {"mean_before", fmt(f.mean_before, 4)},
+                                               {"mean_after", fmt(f.mean_after, 4)},
+                                               {"change", pct(f.change)}});
   write_text(s.out_dir / "friction.md", f.markdown);
   return f;
 }
@@ -429,7 +444,7 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
   }
   const StairEvents& e0 = out.cases.front().run.stair;
   log(s) << "  box x = " << fmt(e0.x_near) << " … " << fmt(e0.x_far) << " m, top z = " << fmt(e0.top) << " m\n";
-  tk::Table t({"k_c", "avg speed", "head on top", "COM past far edge", "whole body past", "max head z", "run"});
+  std::string rows;  // the report's table (report/stair.md.in)
   for (const StairCase& c : out.cases) {
     const RunResult& r = c.run;
     log(s) << "  k_c = " << std::setw(5) << fmt(c.k_c) << ": speed " << cms(r.avg_speed) << ", head on top "
@@ -437,9 +452,10 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
            << secs(r.stair.t_body_past) << ", max head z " << fmt(r.stair.max_head_z * 100, 3) << " cm"
            << (r.status == model::StepStatus::kOk ? "" : std::string(", STOPPED: ") + std::string(model::to_string(r.status)))
            << '\n';
-    t.add_row({fmt(c.k_c), cms(r.avg_speed), secs(r.stair.t_head_on_top), secs(r.stair.t_com_past),
-               secs(r.stair.t_body_past), fmt(r.stair.max_head_z * 100, 3) + " cm",
-               r.status == model::StepStatus::kOk ? "ok" : std::string(model::to_string(r.status))});
+    rows += (rows.empty() ? "" : "\n") +
+            markdown_row({fmt(c.k_c), cms(r.avg_speed), secs(r.stair.t_head_on_top), secs(r.stair.t_com_past),
+                          secs(r.stair.t_body_past), fmt(r.stair.max_head_z * 100, 3) + " cm",
+                          r.status == model::StepStatus::kOk ? "ok" : std::string(model::to_string(r.status))});
   }
   if (out.cases.size() >= 2) {
     const double g = out.cases[1].run.avg_speed / out.cases[0].run.avg_speed - 1.0;
@@ -449,9 +465,11 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
   std::vector<std::string> hh{"box height"};
   for (double k : k_c) hh.push_back("k_c = " + fmt(k) + ": speed, whole body past");
   tk::Table ht(hh);
+  std::string height_rows;
   for (const StairHeight& h : out.heights) {
     std::vector<std::string> cells{fmt(h.height * 100) + " cm"};
     for (std::size_t i = 0; i < k_c.size(); ++i) cells.push_back(cms(h.speed[i]) + ", " + secs(h.t_body_past[i]));
+    height_rows += (height_rows.empty() ? "" : "\n") + markdown_row(cells);
     ht.add_row(cells);
   }
   if (!out.heights.empty()) log(s) << "  box-height scan (same scene, lower boxes):\n" << ht.to_text();
@@ -471,23 +489,29 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
     names.push_back("stair_progress");
     draw(s, names);
   }
-  std::ostringstream md;
-  md << "### Stair (`pedalwave_paper stair" << stair_arg(s) << "`, scene `" << s.scene_prefix << s.stair_scene << "`)\n\n"
-     << "Box " << fmt((e0.x_far - e0.x_near) * 100) << " cm wide, " << fmt(e0.top * 100)
-     << " cm high, x = " << fmt(e0.x_near) << " … " << fmt(e0.x_far) << " m (5 cm ahead of the head); "
-     << fmt(duration) << " s, " << describe_integ(s, sc) << ". *Head on top*: the head tip over the top "
-     << "face, touching it (x within the box, z within top − " << fmt(kOnTopBelow * 100) << " cm … top + "
-     << fmt(kOnTopAbove * 100) << " cm). *COM past*: the "
-     << "COM beyond the far edge. *Whole body past*: all 2N+1 body points beyond the far edge. "
-     << "Speed: COM x from t = " << fmt(out.cases.front().run.avg_from) << " s.\n\n"
-     << t.to_markdown() << '\n';
+  // The report (report/stair.md.in; the box-height scan and each case's figures are their own
+  // templates).
+  std::string height_scan, figures;
   if (!out.heights.empty())
-    md << "The same runs over lower boxes (which height can the robot climb?):\n\n" << ht.to_markdown() << '\n';
+    height_scan = fill_report("stair_heights.md.in",
+                          {{"header", markdown_row(hh) + "\n" + markdown_row(std::vector<std::string>(hh.size(), "---"))},
+                           {"rows", height_rows}});
   for (const StairCase& c : out.cases)
-    md << "![k_c = " << fmt(c.k_c) << "](stair_shapes_" << kc_tag(c.k_c) << ".png)\n"
-       << "![k_c = " << fmt(c.k_c) << " film](stair_film_" << kc_tag(c.k_c) << ".png)\n";
-  md << "![progress](stair_progress.png)\n";
-  out.markdown = md.str();
+    figures += fill_report("stair_figures.md.in", {{"k_c", fmt(c.k_c)}, {"tag", kc_tag(c.k_c)}});
+  out.markdown = fill_report("stair.md.in", {{"args", stair_arg(s)},
+                                             {"scene", s.scene_prefix + s.stair_scene},
+                                             {"width_cm", fmt((e0.x_far - e0.x_near) * 100)},
+                                             {"height_cm", fmt(e0.top * 100)},
+                                             {"x_near", fmt(e0.x_near)},
+                                             {"x_far", fmt(e0.x_far)},
+                                             {"duration", fmt(duration)},
+                                             {"integrator", describe_integ(s, sc)},
+                                             {"on_top_below_cm", fmt(kOnTopBelow * 100)},
+                                             {"on_top_above_cm", fmt(kOnTopAbove * 100)},
+                                             {"avg_from", fmt(out.cases.front().run.avg_from)},
+                                             {"rows", rows},
+                                             {"heights", height_scan},
+                                             {"figures", figures}});
   write_text(s.out_dir / "stair.md", out.markdown);
   return out;
 }
@@ -612,40 +636,51 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
     write_figure(s, "sweep_speed", std::move(spec));
     draw(s, {"sweep_speed"});
   }
-  std::ostringstream md;
-  md << "### k_c sweep (`pedalwave_paper sweep" << stair_arg(s) << "`)\n\n"
-     << grid.size() << " runs over the stair (scene `" << s.stair_scene << "`), k_c = " << fmt(o.from) << " … " << fmt(o.to) << " step "
-     << fmt(o.step) << ", " << fmt(o.duration) << " s each, " << describe_integ(s, sc) << ", "
-     << (s.campaign.backend == campaign::Backend::slurm
-             ? "as Slurm job arrays (" + std::to_string(s.campaign.slurm.chunk) + " runs per task)"
-             : "on " + std::to_string(s.jobs) + " threads")
-     << ": wall **" << fmt(out.wall_s, 3) << " s**, CPU " << fmt(out.cpu_s, 3)
-     << " s, real-time factor " << fmt(out.realtime_factor, 3) << " (simulated s per wall s).\n\n";
+  // The report (report/sweep.md.in; the best and the accuracy check are their own templates, left
+  // out when there is none).
+  std::string best, checks, rows;
   if (have_best)
-    md << "Best k_c = **" << fmt(out.points[out.best].k_c) << "**: " << cms(out.points[out.best].speed)
-       << " against " << cms(out.v0) << " at k_c = 0, gain **" << pct(out.gain)
-       << "** (paper: best 10.1, +24.8 %). Whole body past the box within the run for " << past
-       << " of " << out.points.size() << " k_c values.\n\n";
+    best = fill_report("sweep_best.md.in", {{"k_c", fmt(out.points[out.best].k_c)},
+                                            {"speed", cms(out.points[out.best].speed)},
+                                            {"v0", cms(out.v0)},
+                                            {"gain", pct(out.gain)},
+                                            {"past", std::to_string(past)},
+                                            {"points", std::to_string(out.points.size())}});
   if (!out.checks.empty()) {
-    md << "Accuracy of the sweep's integrator: the same runs at h = " << fmt(o.check_h) << " s:\n\n";
-    tk::Table t({"k_c", "h = " + fmt(integ_of(s, sc).h) + " s", "h = " + fmt(o.check_h) + " s", "Δ [cm/s]"});
     for (const SweepCheck& c : out.checks)
-      t.add_row({fmt(c.k_c), cms(c.speed), cms(c.speed_fine), fixed((c.speed - c.speed_fine) * 100, 3)});
-    md << t.to_markdown() << '\n';
+      rows += (rows.empty() ? "" : "\n") + markdown_row({fmt(c.k_c), cms(c.speed), cms(c.speed_fine),
+                                                         fixed((c.speed - c.speed_fine) * 100, 3)});
+    checks = fill_report("sweep_checks.md.in",
+                         {{"check_h", fmt(o.check_h)}, {"h", fmt(integ_of(s, sc).h)}, {"rows", rows}});
+    rows.clear();
   }
-  {
-    tk::Table t({"k_c", "speed", "head on top", "whole body past"});
-    for (const SweepPoint& p : out.points) {
-      const double frac = p.k_c - std::floor(p.k_c + 1e-9);
-      const bool integer = std::abs(frac) < 1e-6;
-      if (integer || &p == &out.points[std::min(out.best, out.points.size() - 1)])
-        t.add_row({fmt(p.k_c) + (&p == &out.points[out.best] ? " (best)" : ""), cms(p.speed),
-                   secs(p.stair.t_head_on_top), secs(p.stair.t_body_past)});
-    }
-    md << "Every whole k_c and the best (all points: `sweep.csv`):\n\n" << t.to_markdown()
-       << "\n![sweep](sweep_speed.png)\n";
+  for (const SweepPoint& p : out.points) {
+    const double frac = p.k_c - std::floor(p.k_c + 1e-9);
+    const bool integer = std::abs(frac) < 1e-6;
+    if (integer || &p == &out.points[std::min(out.best, out.points.size() - 1)])
+      rows += (rows.empty() ? "" : "\n") + markdown_row({fmt(p.k_c) + (&p == &out.points[out.best] ? " (best)" : ""),
+                                                         cms(p.speed), secs(p.stair.t_head_on_top),
+                                                         secs(p.stair.t_body_past)});
   }
-  out.markdown = md.str();
+  out.markdown = fill_report(
+      "sweep.md.in",
+      {{"args", stair_arg(s)},
+       {"runs", std::to_string(grid.size())},
+       {"scene", s.stair_scene},
+       {"from", fmt(o.from)},
+       {"to", fmt(o.to)},
+       {"step", fmt(o.step)},
+       {"duration", fmt(o.duration)},
+       {"integrator", describe_integ(s, sc)},
+       {"where", s.campaign.backend == campaign::Backend::slurm
+                     ? "as Slurm job arrays (" + std::to_string(s.campaign.slurm.chunk) + " runs per task)"
+                     : "on " + std::to_string(s.jobs) + " threads"},
+       {"wall_s", fmt(out.wall_s, 3)},
+       {"cpu_s", fmt(out.cpu_s, 3)},
+       {"realtime_factor", fmt(out.realtime_factor, 3)},
+       {"best", best},
+       {"checks", checks},
+       {"rows", rows}});
   write_text(s.out_dir / "sweep.md", out.markdown);
   return out;
 }
@@ -697,6 +732,7 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
   const auto res = run_all(s, specs, "sensitivity");
   tk::Table t({"parameter", "value", "flat v (0.82)", "flat v (0.40)", "friction gain", "torque-peak change",
                "stair v k_c=0", "stair v k_c=" + fmt(o.k_c), "stair gain", "body past (0 / " + fmt(o.k_c) + ")"});
+  std::string md_rows;  // the same rows for the report's template
   for (std::size_t i = 0; i < vars.size(); ++i) {
     const RunResult* r = &res[i * kRuns];
     SensitivityRow row;
@@ -719,24 +755,26 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
     std::string bad;
     for (int k = 0; k < kRuns; ++k)
       if (r[k].status != model::StepStatus::kOk) bad += " run " + std::to_string(k) + " " + std::string(model::to_string(r[k].status));
-    t.add_row({row.parameter, row.value + (bad.empty() ? "" : " (STOPPED:" + bad + ")"), cms(row.v_high),
-               cms(row.v_low), pct(row.gain),
-               pct(row.peak_change) + " (" + std::to_string(row.peaks_before) + "/" + std::to_string(row.peaks_after) + " peaks)",
-               cms(row.stair_v0), cms(row.stair_vkc),
-               pct(row.stair_gain), secs(row.past0) + " / " + secs(row.pastkc)});
+    std::vector<std::string> cells{row.parameter, row.value + (bad.empty() ? "" : " (STOPPED:" + bad + ")"),
+                                   cms(row.v_high), cms(row.v_low), pct(row.gain),
+                                   pct(row.peak_change) + " (" + std::to_string(row.peaks_before) + "/" +
+                                       std::to_string(row.peaks_after) + " peaks)",
+                                   cms(row.stair_v0), cms(row.stair_vkc), pct(row.stair_gain),
+                                   secs(row.past0) + " / " + secs(row.pastkc)};
+    md_rows += (md_rows.empty() ? "" : "\n") + markdown_row(cells);
+    t.add_row(std::move(cells));
     out.rows.push_back(row);
   }
   log(s) << t.to_text();
-  std::ostringstream md;
-  md << "### Sensitivity to the unpublished parameters (`pedalwave_paper sensitivity`)\n\n"
-     << "One parameter at a time from the baseline (model-spec.md §8: K = " << fmt(K0) << " N·m/rad, I_r = "
-     << fmt(Ir0) << " kg·m²); the last rows switch one model option instead. Flat and stair runs "
-     << fmt(o.flat_duration) << " s / " << fmt(o.stair_duration) << " s, friction " << fmt(fr_dur) << " s, "
-     << "flat and friction: " << describe_integ(s, hi) << ", stair: " << describe_integ(s, st) << ". *friction gain* = v(0.82)/v(0.40) − 1 (paper +20.3 % exp., +13.7 % sim.); "
-     << "*torque-peak change* (paper +4.3 % / +16.3 %; peaks before/after the crossing in brackets); *stair gain* = v(k_c = " << fmt(o.k_c)
-     << ")/v(0) − 1 (paper +24.8 %); *body past*: the whole body beyond the box's far edge.\n\n"
-     << t.to_markdown();
-  out.markdown = md.str();
+  out.markdown = fill_report("sensitivity.md.in", {{"K0", fmt(K0)},
+                                                  {"I_r0", fmt(Ir0)},
+                                                  {"flat_duration", fmt(o.flat_duration)},
+                                                  {"stair_duration", fmt(o.stair_duration)},
+                                                  {"friction_duration", fmt(fr_dur)},
+                                                  {"flat_integrator", describe_integ(s, hi)},
+                                                  {"stair_integrator", describe_integ(s, st)},
+                                                  {"k_c", fmt(o.k_c)},
+                                                  {"rows", md_rows}});
   write_text(s.out_dir / "sensitivity.md", out.markdown);
 
   if (s.plots) {
@@ -770,7 +808,8 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
 // ================================================================================================
 namespace {
 
-// The fitted scenes beside the shipped ones: the same measures from the same experiments.
+// The fitted scenes beside the shipped ones: the same measures from the same experiments
+// (report/fitted.md.in; the paper's values are in the template, here only for the notes).
 std::string fitted_table(const AllResult& r, std::size_t* rows) {
   const FittedResult& f = *r.fitted;
   auto at = [](const StairResult& st, double k_c) {
@@ -790,16 +829,15 @@ std::string fitted_table(const AllResult& r, std::size_t* rows) {
   };
   const double s1 = at(r.stair, PaperValues::kBestKc), s0 = at(r.stair, 0.0);
   const double f1 = at(f.stair, PaperValues::kBestKc), f0 = at(f.stair, 0.0);
-  const std::string p = " --scene-prefix " + f.prefix;
-  tk::Table t({"case", "paper's simulation", "shipped scenes (today's assumptions)",
-               "fitted scenes (`" + f.prefix + "*`)", "command (fitted)"});
+  std::map<std::string, std::string> v{{"prefix", f.prefix}, {"parameters", f.parameters}};
   std::vector<std::string> notes;
-  // A row and, where the fitted figure is not the paper's within its target tolerance
+  // A value pair and, where the fitted figure is not the paper's within its target tolerance
   // (config/identify/paper_targets.yaml), a sentence giving the difference.
-  auto row = [&](const std::string& c, double paper, double shipped, double fitted, bool percent, double tol,
-                 const std::string& cmd) {
-    const auto show = [&](double v) { return percent ? pct(v) : cms(v); };
-    t.add_row({c, show(paper), show(shipped), show(fitted), "`pedalwave_paper " + cmd + p + "`"});
+  auto row = [&](const std::string& key, const std::string& c, double paper, double shipped, double fitted,
+                 bool percent, double tol) {
+    const auto show = [&](double x) { return percent ? pct(x) : cms(x); };
+    v["shipped." + key] = show(shipped);
+    v["fitted." + key] = show(fitted);
     const double d = fitted - paper;
     if (!(std::abs(d) <= tol))
       notes.push_back("**" + c + "**: fitted " + show(fitted) + " against the paper's " + show(paper) + " (" +
@@ -807,32 +845,30 @@ std::string fitted_table(const AllResult& r, std::size_t* rows) {
                       ", " + (std::isfinite(d) ? fmt(std::abs(d) / tol, 2) : std::string("—")) +
                       " tolerances); shipped " + show(shipped) + ".");
   };
-  row("flat, μ = 0.82: average speed", PaperValues::kFlatSpeedSim, r.flat.v_high, f.flat.v_high, false, 0.001, "flat");
-  t.add_row({"flat, μ = 0.40: average speed", "≈ 1.92 cm/s", cms(r.flat.v_low), cms(f.flat.v_low),
-             "`pedalwave_paper flat" + p + "`"});
-  row("speed gain μ = 0.82 over 0.40", PaperValues::kFrictionGainSim, r.flat.gain, f.flat.gain, true, 0.02, "flat");
-  row("SEA torque-peak change after the head enters μ = 0.40", PaperValues::kPeakChangeSim, r.friction.change,
-      f.friction.change, true, 0.03, "friction");
-  row("stair, k_c = 10.1: average speed (60 s)", PaperValues::kStairSpeedSim, s1, f1, false, 0.002, "stair");
-  t.add_row({"stair, k_c = 0: average speed (60 s)", "≈ 1.71 cm/s", cms(s0), cms(f0), "`pedalwave_paper stair" + p + "`"});
-  t.add_row({"stair, k_c = 10.1: climb", "climbs (Fig. 10)", climb(r.stair, PaperValues::kBestKc),
-             climb(f.stair, PaperValues::kBestKc), "`pedalwave_paper stair" + p + "`"});
-  row("stair gain of k_c = 10.1 over k_c = 0", PaperValues::kStairGainSim, s1 / s0 - 1.0, f1 / f0 - 1.0, true, 0.05,
-      "stair");
-  t.add_row({"k_c sweep: best k_c, gain over k_c = 0", "10.1, +24.8 %", best(r.sweep), best(f.sweep),
-             "`pedalwave_paper sweep" + p + "`"});
+  row("flat_v_high", "flat, μ = 0.82: average speed", PaperValues::kFlatSpeedSim, r.flat.v_high, f.flat.v_high, false,
+      0.001);
+  v["shipped.flat_v_low"] = cms(r.flat.v_low);
+  v["fitted.flat_v_low"] = cms(f.flat.v_low);
+  row("flat_gain", "speed gain μ = 0.82 over 0.40", PaperValues::kFrictionGainSim, r.flat.gain, f.flat.gain, true, 0.02);
+  row("peak_change", "SEA torque-peak change after the head enters μ = 0.40", PaperValues::kPeakChangeSim,
+      r.friction.change, f.friction.change, true, 0.03);
+  row("stair_v_kc", "stair, k_c = 10.1: average speed (60 s)", PaperValues::kStairSpeedSim, s1, f1, false, 0.002);
+  v["shipped.stair_v_0"] = cms(s0);
+  v["fitted.stair_v_0"] = cms(f0);
+  v["shipped.climb_kc"] = climb(r.stair, PaperValues::kBestKc);
+  v["fitted.climb_kc"] = climb(f.stair, PaperValues::kBestKc);
+  row("stair_gain", "stair gain of k_c = 10.1 over k_c = 0", PaperValues::kStairGainSim, s1 / s0 - 1.0, f1 / f0 - 1.0,
+      true, 0.05);
+  v["shipped.sweep_best"] = best(r.sweep);
+  v["fitted.sweep_best"] = best(f.sweep);
   if (f.sweep.best < f.sweep.points.size() && std::abs(f.sweep.points[f.sweep.best].k_c - PaperValues::kBestKc) > 1.0)
     notes.push_back("**Best k_c**: fitted " + fmt(f.sweep.points[f.sweep.best].k_c) + " against the paper's 10.1 (gain " +
                     pct(f.sweep.gain) + " against +24.8 %).");
-  if (rows) *rows = t.rows();
-  std::ostringstream md;
-  md << "## The fitted scenes beside today's assumptions (`pedalwave_paper all`, `" << f.prefix << "*`)\n\n"
-     << "Fitted by `pedalwave_identify fit` to the paper's simulated figures (config/identify/): " << f.parameters
-     << ". Tolerances as in paper_targets.yaml (0.1 cm/s flat, 2 / 3 points, 0.2 cm/s stair, 5 points).\n\n"
-     << t.to_markdown() << '\n';
-  if (notes.empty()) md << "Every fitted figure is the paper's within its tolerance.\n";
-  for (const std::string& n : notes) md << "- " << n << '\n';
-  return md.str();
+  std::string list;
+  if (notes.empty()) list = "Every fitted figure is the paper's within its tolerance.";
+  for (const std::string& n : notes) list += (list.empty() ? "" : "\n") + ("- " + n);
+  v["notes"] = list;
+  return fill_report("fitted.md.in", v, rows);
 }
 
 // The fitted values of a scene, as one line (the identification's parameters).
@@ -850,13 +886,15 @@ std::string scene_parameters(const model::Scene& sc) {
 }  // namespace
 
 std::string paper_table(const AllResult& r, std::size_t* rows, std::size_t* fitted_rows) {
-  // Ranges of a measure over the sensitivity rows of one parameter.
+  // The report's text is the template tools/paper/report/table.md.in; here only the values.
+  std::map<std::string, std::string> v;
+  // Ranges of a measure over the sensitivity rows of one parameter (with the baseline).
   auto range = [&](const std::string& param, double SensitivityRow::*field, bool percent) {
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
     for (const SensitivityRow& row : r.sensitivity.rows)
       if (row.parameter == param || row.parameter == "baseline") {
-        const double v = row.*field;
-        if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
+        const double x = row.*field;
+        if (std::isfinite(x)) lo = std::min(lo, x), hi = std::max(hi, x);
       }
     if (!std::isfinite(lo)) return std::string("—");
     return percent ? pct(lo) + " … " + pct(hi) : fixed(lo * 100, 2) + " … " + fixed(hi * 100, 2) + " cm/s";
@@ -866,18 +904,21 @@ std::string paper_table(const AllResult& r, std::size_t* rows, std::size_t* fitt
       if (row.parameter == param) return percent ? pct(row.*field) : cms(row.*field);
     return std::string("—");
   };
-  const std::string Ks = "K [N·m/rad]", Is = "I_r [kg·m²]", com = "friction at", vs = "v_s [m/s]";
-  auto evidence = [&](double SensitivityRow::*field, bool percent) {
-    if (r.sensitivity.rows.empty()) return std::string("(no sensitivity runs)");
-    return "over K = 1 … 100 N·m/rad ours spans " + range(Ks, field, percent) + ", over I_r = 1e-8 … 2e-7 kg·m² " +
-           range(Is, field, percent) + "; with friction at the link COMs only (the paper's choice) " +
-           option(com, field, percent) + ", with v_s = 1e-4 m/s " + option(vs, field, percent) + " (sensitivity.md)";
+  // <measure>.over_K, .over_I_r, .friction_at_com, .v_s: how the measure moves with the
+  // unpublished parameters and the two model options (sensitivity.md).
+  auto evidence = [&](const std::string& measure, double SensitivityRow::*field, bool percent) {
+    v[measure + ".over_K"] = range("K [N·m/rad]", field, percent);
+    v[measure + ".over_I_r"] = range("I_r [kg·m²]", field, percent);
+    v[measure + ".friction_at_com"] = option("friction at", field, percent);
+    v[measure + ".v_s"] = option("v_s [m/s]", field, percent);
   };
+  evidence("v_high", &SensitivityRow::v_high, false);
+  evidence("v_low", &SensitivityRow::v_low, false);
+  evidence("gain", &SensitivityRow::gain, true);
+  evidence("peak_change", &SensitivityRow::peak_change, true);
+  evidence("stair_vkc", &SensitivityRow::stair_vkc, false);
+  evidence("stair_gain", &SensitivityRow::stair_gain, true);
 
-  const SweepResult& sw = r.sweep;
-  const bool have_best = sw.best < sw.points.size();
-  const double best_k = have_best ? sw.points[sw.best].k_c : kNaN;
-  const double best_v = have_best ? sw.points[sw.best].speed : kNaN;
   // The run of a stair result at a given k_c (nullptr if it was not run).
   auto case_at = [](const StairResult& st, double k_c) -> const StairCase* {
     for (const StairCase& c : st.cases)
@@ -891,17 +932,13 @@ std::string paper_table(const AllResult& r, std::size_t* rows, std::size_t* fitt
       text += "; k_c = " + fmt(c.k_c) + ": " + cms(c.speed) + " → " + cms(c.speed_fine);
     return text;
   };
-  const StairCase* s0 = case_at(r.stair, 0.0);
-  const StairCase* s1 = case_at(r.stair, PaperValues::kBestKc);
-  const double st0 = s0 ? s0->run.avg_speed : kNaN, st1 = s1 ? s1->run.avg_speed : kNaN;
   auto climb = [](const StairCase* c) {
     if (!c) return std::string("—");
     const StairEvents& e = c->run.stair;
     return "head on top " + secs(e.t_head_on_top) + ", COM past " + secs(e.t_com_past) + ", whole body past " +
            secs(e.t_body_past);
   };
-
-  // Where a stair run ended, and which box heights were climbed.
+  // Where a stair run ended (a sentence, or nothing when the case was not run).
   auto stuck = [](const StairCase* c) {
     if (!c) return std::string();
     const RunResult& q = c->run;
@@ -915,110 +952,70 @@ std::string paper_table(const AllResult& r, std::size_t* rows, std::size_t* fitt
            fixed(q.com_x_final * 100, 1) + " cm (box " + fixed(q.stair.x_near * 100, 1) + " … " +
            fixed(q.stair.x_far * 100, 1) + " cm). ";
   };
-  std::string climbable;
+  // The stair values of one box scene under `key` (stair, grip).
+  auto stair_values = [&](const std::string& key, const StairResult& st) {
+    const StairCase* s0 = case_at(st, 0.0);
+    const StairCase* s1 = case_at(st, PaperValues::kBestKc);
+    const double v0 = s0 ? s0->run.avg_speed : kNaN, v1 = s1 ? s1->run.avg_speed : kNaN;
+    v[key + ".v_kc"] = cms(v1);
+    v[key + ".v_0"] = cms(v0);
+    v[key + ".climb_kc"] = climb(s1);
+    v[key + ".climb_0"] = climb(s0);
+    v[key + ".gain"] = pct(v1 / v0 - 1.0);
+    v[key + ".outcome_0"] = stuck(s0);
+    v[key + ".outcome_kc"] = stuck(s1);
+  };
+
+  v["flat.v_high"] = cms(r.flat.v_high);
+  v["flat.v_low"] = cms(r.flat.v_low);
+  v["flat.gain"] = pct(r.flat.gain);
+  v["flat.v_high_vs_paper"] = pct(r.flat.v_high / PaperValues::kFlatSpeedSim - 1.0);
+  v["friction.change"] = pct(r.friction.change);
+  v["friction.cross_x"] = fmt(r.friction.cross_x);
+  v["friction.t_cross"] = secs(r.friction.t_cross);
+  stair_values("stair", r.stair);
+  v["stair.on_top_below_cm"] = fmt(kOnTopBelow * 100);
+  v["stair.on_top_above_cm"] = fmt(kOnTopAbove * 100);
   {
+    // Which box heights were climbed (a sentence, or nothing without the scan).
     double best_h = kNaN;
     for (const StairHeight& h : r.stair.heights)
       for (double tp : h.t_body_past)
         if (!std::isnan(tp)) best_h = std::isnan(best_h) ? h.height : std::max(best_h, h.height);
+    std::string climbable;
     if (!r.stair.heights.empty())
       climbable = std::isnan(best_h)
                       ? "In the box-height scan (stair.md) no height was passed within the run. "
                       : "In the box-height scan (stair.md) the highest box the whole body passed is " +
                             fmt(best_h * 100) + " cm. ";
+    v["stair.heights"] = climbable;
   }
-  tk::Table t({"case", "paper's experiment", "paper's simulation", "ours", "command that reproduced it"});
-  std::vector<std::string> notes;
-  t.add_row({"flat, μ = 0.82: average speed", "2.40 cm/s", "2.18 cm/s", cms(r.flat.v_high), "`pedalwave_paper flat`"});
-  notes.push_back("**Flat speed**: ours is " + pct(r.flat.v_high / PaperValues::kFlatSpeedSim - 1.0) +
-                  " against the paper's simulation. The paper does not give K, I_r or I_l (we assume 3 N·m/rad, "
-                  "5e-8 kg·m², a uniform rod): " + evidence(&SensitivityRow::v_high, false) + ".");
-  t.add_row({"flat, μ = 0.40: average speed", "— (≈ 1.99 cm/s from the gain)", "— (≈ 1.92 cm/s from the gain)",
-             cms(r.flat.v_low), "`pedalwave_paper flat`"});
-  notes.push_back("**Flat speed at μ = 0.40**: the paper gives only the ratio; the values in brackets are "
-                  "2.40/1.203 and 2.18/1.137. Ours follows from the same model choices as the μ = 0.82 row: " +
-                  evidence(&SensitivityRow::v_low, false) + ".");
-  t.add_row({"speed gain μ = 0.82 over 0.40", "+20.3 %", "+13.7 %", pct(r.flat.gain), "`pedalwave_paper flat`"});
-  notes.push_back("**Friction speed gain**: the sign agrees (higher friction is faster); the size depends on how "
-                  "much the body slips, i.e. on the friction law and where it acts: " +
-                  evidence(&SensitivityRow::gain, true) +
-                  ". Our contact acts at all 2N+1 points with a regularized law (v_s = 1e-3 m/s), the paper's at "
-                  "the link COMs with sign(v).");
-  t.add_row({"SEA torque-peak change after the head enters μ = 0.40", "+4.3 %", "+16.3 %", pct(r.friction.change),
-             "`pedalwave_paper friction`"});
-  notes.push_back("**Torque-peak change**: mean magnitude of the head joint's negative SEA-torque peaks after the "
-                  "head tip crosses x = " + fmt(r.friction.cross_x) + " m (t = " + secs(r.friction.t_cross) +
-                  ") against before; " + evidence(&SensitivityRow::peak_change, true) +
-                  ". The joint torque is set mostly by the module-side PD (K_p = 30, K_D = 15 at 1 kHz, "
-                  "runtime/control/README.md) tracking the same gait, so the surface changes the peaks only "
-                  "through the load the links see.");
-  t.add_row({"stair, k_c = 10.1: average speed (60 s)", "1.3 cm/s (climbs)", "≈ 2.13 cm/s", cms(st1),
-             "`pedalwave_paper stair`"});
-  t.add_row({"stair, k_c = 0: average speed (60 s)", "—", "≈ 1.71 cm/s (2.13/1.248)", cms(st0),
-             "`pedalwave_paper stair`"});
-  t.add_row({"stair, k_c = 10.1: climb", "climbs", "climbs (Fig. 10)", climb(s1), "`pedalwave_paper stair`"});
-  t.add_row({"stair, k_c = 0: climb", "—", "—", climb(s0), "`pedalwave_paper stair`"});
-  notes.push_back("**Stair**: events as defined in stair.md (head on top: head tip touching the top face, within −" +
-                  fmt(kOnTopBelow * 100) + " … +" + fmt(kOnTopAbove * 100) + " cm of its height; whole body past: every body point beyond the far "
-                  "edge). Speeds: " + evidence(&SensitivityRow::stair_vkc, false) +
-                  " (k_c = 10.1). " + stuck(s0) + stuck(s1) + climbable +
-                  "Our contact also tests the box's corners against the link segments, which the "
-                  "paper names as a remedy but whose use in its results it does not state; see the shape plots "
-                  "(stair_shapes_*.png, stair_film_*.png) for what the body does at the box.");
-  t.add_row({"k_c sweep: best k_c (0 … 15 step 0.1)", "—", "10.1", fmt(best_k), "`pedalwave_paper sweep`"});
-  t.add_row({"k_c sweep: best over k_c = 0", "—", "+24.8 %", pct(sw.gain) + " (" + cms(best_v) + " vs " + cms(sw.v0) + ")",
-             "`pedalwave_paper sweep`"});
-  t.add_row({"stair gain of k_c = 10.1 over k_c = 0", "—", "+24.8 %", pct(st1 / st0 - 1.0), "`pedalwave_paper stair`"});
-  notes.push_back("**k_c sweep**: the optimum is the argmax of a speed curve that is itself sensitive to the "
-                  "unpublished parameters (stair gain of k_c = 10.1: " + evidence(&SensitivityRow::stair_gain, true) +
-                  "); the sweep's own integrator error is in sweep.md (re-runs at h = " + fmt(sw.options.check_h) +
-                  " s" + check_list(sw) + ").");
-  {
-    // The calibrated edge friction (scene stair_grip), where the robot climbs.
-    const StairCase* g0 = case_at(r.stair_grip, 0.0);
-    const StairCase* g1 = case_at(r.stair_grip, PaperValues::kBestKc);
-    const double gv0 = g0 ? g0->run.avg_speed : kNaN, gv1 = g1 ? g1->run.avg_speed : kNaN;
-    const SweepResult& gs = r.sweep_grip;
-    const bool g_best = gs.best < gs.points.size();
-    const std::string cmd = "`pedalwave_paper stair --stair-scene stair_grip`";
-    t.add_row({"stair, edge μ = 1.5 (calibrated), k_c = 10.1: average speed (60 s)", "1.3 cm/s (climbs)",
-               "≈ 2.13 cm/s", cms(gv1), cmd});
-    t.add_row({"stair, edge μ = 1.5 (calibrated), k_c = 0: average speed (60 s)", "—", "≈ 1.71 cm/s", cms(gv0), cmd});
-    t.add_row({"stair, edge μ = 1.5 (calibrated), k_c = 10.1: climb", "climbs", "climbs (Fig. 10)", climb(g1), cmd});
-    t.add_row({"stair, edge μ = 1.5 (calibrated), k_c = 0: climb", "—", "—", climb(g0), cmd});
-    t.add_row({"stair, edge μ = 1.5 (calibrated): gain of k_c = 10.1 over 0", "—", "+24.8 %", pct(gv1 / gv0 - 1.0), cmd});
-    t.add_row({"k_c sweep, edge μ = 1.5 (calibrated): best k_c, gain over k_c = 0", "—", "10.1, +24.8 %",
-               g_best ? fmt(gs.points[gs.best].k_c) + ", " + pct(gs.gain) + " (" + cms(gs.points[gs.best].speed) +
-                            " vs " + cms(gs.v0) + ")"
-                      : std::string("—"),
-               "`pedalwave_paper sweep --stair-scene stair_grip`"});
-    notes.push_back("**Stair with a grippier edge (a calibration, not a paper value)**: on the shipped stair the link "
-                    "lying across the box's near top edge leans at 50–60°, steeper than the friction angle "
-                    "atan(0.82) = 39°, and slides back over the edge once per gait period, cancelling the stride "
-                    "(an exactly periodic stuck state). Scene `stair_grip` raises the friction of the corner-vs-link "
-                    "contacts only (`edge_mu: 1.5`; the faces keep 0.82): " + stuck(g0) + stuck(g1) +
-                    "No other change tried makes the robot climb (tools/paper/README.md): corner contact off, friction "
-                    "law, v_s, start pose, K up to 100 N·m/rad or rigid joints, 12 other gaits. Its sweep's own "
-                    "integrator error (re-runs at h = " + fmt(gs.options.check_h) + " s" + check_list(gs) + ") is of the size of the gain: the speed has a plateau over k_c ≈ 6 … 11 rather than a sharp optimum.");
-  }
-  t.add_row({"sweep wall time (151 × 60 s)", "—", "—",
-             fmt(sw.wall_s, 3) + " s on " + std::to_string(sw.jobs) + " threads (RTF " + fmt(sw.realtime_factor, 3) + ")",
-             "`pedalwave_paper sweep`"});
-  notes.push_back("**Sweep cost**: wall time on this machine, shared with other jobs (CPU time of all runs: " +
-                  fmt(sw.cpu_s, 3) + " s, so " + fmt(sw.cpu_s / std::max(1, sw.jobs), 3) + " s on " +
-                  std::to_string(sw.jobs) + " otherwise idle cores).");
-  if (rows) *rows = t.rows();
-  std::ostringstream md;
-  md << "## The paper's results, reproduced (`pedalwave_paper all`)\n\n" << t.to_markdown() << '\n';
-  md << "Common to every row: module-side PD at 1 kHz (a host-side PD at 1 kHz is discretely unstable "
-        "with n² I_r = 3.25e-3 kg·m², see runtime/control/README.md), regularized friction (v_s = 1e-3 m/s), "
-        "contact at all 2N+1 body points (the paper: link COMs), K = 3 N·m/rad, I_r = 5e-8 kg·m², "
-        "I_l = m_l (2l)²/12 (all three unpublished; model-spec.md §8), speed averaged from one gait period "
-        "(2 s) on.\n\n";
-  for (const std::string& n : notes) md << "- " << n << '\n';
+  const SweepResult& sw = r.sweep;
+  const bool have_best = sw.best < sw.points.size();
+  v["sweep.best_k_c"] = fmt(have_best ? sw.points[sw.best].k_c : kNaN);
+  v["sweep.best_speed"] = cms(have_best ? sw.points[sw.best].speed : kNaN);
+  v["sweep.gain"] = pct(sw.gain);
+  v["sweep.v0"] = cms(sw.v0);
+  v["sweep.check_h"] = fmt(sw.options.check_h);
+  v["sweep.checks"] = check_list(sw);
+  v["sweep.wall_s"] = fmt(sw.wall_s, 3);
+  v["sweep.jobs"] = std::to_string(sw.jobs);
+  v["sweep.realtime_factor"] = fmt(sw.realtime_factor, 3);
+  v["sweep.cpu_s"] = fmt(sw.cpu_s, 3);
+  v["sweep.cpu_s_per_job"] = fmt(sw.cpu_s / std::max(1, sw.jobs), 3);
+  // The calibrated edge friction (scene stair_grip), where the robot climbs.
+  stair_values("grip", r.stair_grip);
+  const SweepResult& gs = r.sweep_grip;
+  v["grip_sweep.best"] = gs.best < gs.points.size() ? fmt(gs.points[gs.best].k_c) + ", " + pct(gs.gain) + " (" +
+                                                          cms(gs.points[gs.best].speed) + " vs " + cms(gs.v0) + ")"
+                                                    : std::string("—");
+  v["grip_sweep.check_h"] = fmt(gs.options.check_h);
+  v["grip_sweep.checks"] = check_list(gs);
+
+  std::string md = fill_report("table.md.in", v, rows);
   if (fitted_rows) *fitted_rows = 0;
-  if (r.fitted) md << '\n' << fitted_table(r, fitted_rows);
-  return md.str();
+  if (r.fitted) md += '\n' + fitted_table(r, fitted_rows);
+  return md;
 }
 
 AllResult all(const Settings& s, const AllOptions& o) {

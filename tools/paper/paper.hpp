@@ -1,12 +1,14 @@
-// The paper's experiments (model-spec.md §9), each a function that runs, writes its figures
-// (SVG + PNG) and a Markdown fragment into Settings::out_dir, prints its numbers and returns them:
+// The paper's experiments (model-spec.md §9), each a function that runs, writes its figures' data
+// (drawn by tools/figures/paper.py) and a Markdown fragment (from its template in
+// tools/paper/report/) into Settings::out_dir, prints its numbers and returns them:
 //   flat         average forward speed at μ = 0.82 and μ = 0.40, their ratio
 //   friction     head-joint SEA torque over the friction change (the paper's Fig. 7), peak change
 //   stair        k_c = 0 against k_c = 10.1 over the stair: climb events, speed, shapes (Fig. 10)
 //   sweep        average speed against k_c over the stair (Fig. 9), best k_c, gain, accuracy check
 //   sensitivity  how the above move with the unpublished K and I_r (and two model options)
 //   all          everything and paper_table.md (paper's experiment | paper's simulation | ours)
-// Numbers are never hard-coded: the paper's values appear only as the reference column.
+// Numbers are never hard-coded: the paper's values appear only as the reference column (in the
+// report's templates, tools/paper/report/*.md.in; PaperValues below for the fitted notes).
 #pragma once
 
 #include <optional>
@@ -214,7 +216,9 @@ struct AllResult {
 };
 AllResult all(const Settings& s, const AllOptions& o);
 
-// The comparison table (Markdown, with a sentence per difference) from the results.
+// The comparison table (Markdown, with a sentence per difference) from the results: the templates
+// tools/paper/report/table.md.in and fitted.md.in filled with the computed values
+// (toolkit::TemplateError naming the template's line when they disagree).
 // With r.fitted, a second table follows: the paper's simulation, the shipped scenes and the fitted
 // ones side by side (fitted_rows: its rows).
 std::string paper_table(const AllResult& r, std::size_t* rows = nullptr, std::size_t* fitted_rows = nullptr);

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <string_view>
 
+#include "pedalwave/toolkit/format.hpp"
+
 namespace pedalwave::app {
 
 namespace {
@@ -134,12 +136,7 @@ std::string json_string(std::string_view s) {
   return out;
 }
 
-std::string json_number(double v) {
-  if (!std::isfinite(v)) return "null";
-  char b[32];
-  const auto r = std::to_chars(b, b + sizeof b, v);
-  return std::string(b, r.ptr);
-}
+std::string json_number(double v) { return std::isfinite(v) ? toolkit::exact(v) : "null"; }
 
 void write_run_report(std::ostream& out, const RunReportInput& in) {
   const config::DaemonConfig& cfg = in.cfg;

@@ -2,7 +2,7 @@
 # Installs (as root, from Debian 12 packages) what pedalwave needs to build, test and run.
 # Skips apt entirely when everything is already there, so repeated runs are fast.
 set -euo pipefail
-pkgs=(cmake ninja-build g++ clang libeigen3-dev libspdlog-dev libyaml-cpp-dev libcli11-dev
+pkgs=(cmake ninja-build g++ clang libeigen3-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libcli11-dev
       libgtest-dev libgmock-dev libbenchmark-dev cyclonedds-dev cyclonedds-tools rt-tests
       can-utils libclang-rt-14-dev
       libzstd-dev liblz4-dev pkg-config  # pedalwave::mcap (MCAP chunk compression)

@@ -7,6 +7,7 @@
 
 #include "pedalwave/toolkit/csv.hpp"
 #include "pedalwave/toolkit/figures.hpp"
+#include "pedalwave/toolkit/format.hpp"
 #include "pedalwave/toolkit/json.hpp"
 #include "sim_run.hpp"
 
@@ -16,12 +17,7 @@ namespace tk = pedalwave::toolkit;
 
 namespace {
 
-std::string fmt(double v, int precision = 3) {
-  std::ostringstream os;
-  os.precision(precision);
-  os << v;
-  return os.str();
-}
+std::string fmt(double v, int precision = 3) { return tk::sig(v, precision); }
 
 tk::Json scene_json(const model::Scene& s) {
   tk::Json boxes = tk::Json::array(), patches = tk::Json::array();

@@ -10,6 +10,7 @@
 #include "pedalwave/model/dynamics.hpp"
 #include "pedalwave/model/kinematics.hpp"
 #include "pedalwave/toolkit/csv.hpp"
+#include "pedalwave/toolkit/format.hpp"
 #include "pedalwave/toolkit/progress.hpp"
 
 namespace pedalwave::simulate {
@@ -23,11 +24,7 @@ long long periods_in(double seconds, double rate_hz) {
   return std::abs(x - static_cast<double>(n)) <= 1e-6 * std::max(1.0, x) ? n : -1;
 }
 
-std::string num(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
+std::string num(double v) { return toolkit::sig(v); }
 
 }  // namespace
 

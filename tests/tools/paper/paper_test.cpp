@@ -247,6 +247,29 @@ TEST_F(Paper, ParallelSweepGivesTheSameNumbersAsSerialAndItsBestIsItsTablesArgma
   EXPECT_NE(slurp(dir_ / "parallel" / "sweep.md").find("Best k_c = **"), std::string::npos);
 }
 
+// The report's templates (tools/paper/report/table.md.in, fitted.md.in) and the values the tool sets agree: every
+// placeholder has a value and every value a placeholder (else a TemplateError naming the line),
+// also with no runs at all ("—" in every cell), and the tables keep their rows.
+TEST(PaperReport, TheTemplatesAndTheToolsValuesAgree) {
+  paper::AllResult r;
+  std::size_t rows = 0, fitted_rows = 1;
+  std::string md = paper::paper_table(r, &rows, &fitted_rows);
+  EXPECT_EQ(rows, 18u);
+  EXPECT_EQ(fitted_rows, 0u);
+  EXPECT_EQ(md.find("{{"), std::string::npos) << md;
+  EXPECT_EQ(md.rfind("## The paper's results, reproduced (`pedalwave_paper all`)\n\n| case ", 0), 0u) << md;
+  EXPECT_NE(md.find("| flat, μ = 0.82: average speed "), std::string::npos) << md;
+  r.fitted = paper::FittedResult{};
+  r.fitted->prefix = "paper_fit_";
+  r.fitted->parameters = "K = 1 N·m/rad";
+  md = paper::paper_table(r, &rows, &fitted_rows);
+  EXPECT_EQ(rows, 18u);
+  EXPECT_EQ(fitted_rows, 9u);
+  EXPECT_EQ(md.find("{{"), std::string::npos) << md;
+  EXPECT_NE(md.find("`pedalwave_paper sweep --scene-prefix paper_fit_`"), std::string::npos) << md;
+  EXPECT_NE(md.find("config/identify/): K = 1 N·m/rad. Tolerances"), std::string::npos) << md;
+}
+
 // ---- the executable -----------------------------------------------------------------------------
 
 TEST_F(Paper, AllRunsEndToEndWithEveryTableRowAndFiniteNumbers) {

@@ -1,5 +1,7 @@
 #include "pedalwave/toolkit/csv.hpp"
 
+#include "pedalwave/toolkit/format.hpp"
+
 #include <charconv>
 #include <cstdlib>
 #include <cmath>
@@ -11,13 +13,7 @@
 
 namespace pedalwave::toolkit {
 
-std::string format_double(double v) {
-  if (std::isnan(v)) return "nan";
-  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
-}
+std::string format_double(double v) { return exact(v); }
 
 // ---- writer ------------------------------------------------------------------------------------
 

@@ -7,18 +7,17 @@
 #include <cstdio>
 #include <iostream>
 
+#include "pedalwave/toolkit/format.hpp"
 
 namespace pedalwave::toolkit {
 
 std::string format_duration(double seconds) {
   if (!std::isfinite(seconds)) return "--";
   if (seconds < 0.0) seconds = 0.0;
+  if (seconds < 1.0) return fixed(seconds * 1e3, 0) + " ms";
+  if (seconds < 60.0) return fixed(seconds, 1) + " s";
   char buf[64];
-  if (seconds < 1.0) {
-    std::snprintf(buf, sizeof buf, "%.0f ms", seconds * 1e3);
-  } else if (seconds < 60.0) {
-    std::snprintf(buf, sizeof buf, "%.1f s", seconds);
-  } else if (seconds < 3600.0) {
+  if (seconds < 3600.0) {
     const auto total = static_cast<long>(std::lround(seconds));
     std::snprintf(buf, sizeof buf, "%ld min %02ld s", total / 60, total % 60);
   } else {
@@ -31,15 +30,9 @@ std::string format_duration(double seconds) {
 namespace {
 std::string rate_text(double per_s) {
   if (!(per_s > 0.0) || !std::isfinite(per_s)) return "-/s";
-  char buf[32];
-  if (per_s >= 100.0) {
-    std::snprintf(buf, sizeof buf, "%.0f/s", per_s);
-  } else if (per_s >= 1.0) {
-    std::snprintf(buf, sizeof buf, "%.1f/s", per_s);
-  } else {
-    std::snprintf(buf, sizeof buf, "%.3g/s", per_s);
-  }
-  return buf;
+  if (per_s >= 100.0) return fixed(per_s, 0) + "/s";
+  if (per_s >= 1.0) return fixed(per_s, 1) + "/s";
+  return sig(per_s, 3) + "/s";
 }
 }  // namespace
 

@@ -1,5 +1,7 @@
 #include "pedalwave/toolkit/table.hpp"
 
+#include "pedalwave/toolkit/format.hpp"
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -62,19 +64,7 @@ Table& Table::add_row(std::vector<std::string> cells) {
   return *this;
 }
 
-std::string Table::num(double v, int significant) {
-  if (std::isnan(v)) return "nan";
-  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-  significant = std::clamp(significant, 1, 17);
-  char buf[64];
-  const double a = std::abs(v);
-  if (v != 0.0 && (a < 1e-3 || a >= 1e6)) {
-    std::snprintf(buf, sizeof buf, "%.*e", significant - 1, v);
-    return buf;
-  }
-  std::snprintf(buf, sizeof buf, "%.*g", significant, v);
-  return buf;
-}
+std::string Table::num(double v, int significant) { return toolkit::num(v, significant); }
 
 Align Table::resolved(std::size_t col) const {
   if (align_[col] != Align::automatic) return align_[col];

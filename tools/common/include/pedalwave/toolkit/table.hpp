@@ -28,8 +28,9 @@ class Table {
   // columns" when the count differs.
   Table& add_row(std::vector<std::string> cells);
 
-  // A number with `significant` digits, trailing zeros kept off, exponent form outside
-  // [1e-3, 1e6): num(0.000123) = "1.23e-04", num(12.5) = "12.5", NaN = "nan".
+  // A number with `significant` digits (trailing zeros kept off, except in the exponent form),
+  // exponent form outside [1e-3, 1e6): num(0.000123, 3) = "1.23e-04", num(0.000123) = "1.230e-04",
+  // num(12.5) = "12.5", NaN = "nan" (toolkit::num, format.hpp).
   [[nodiscard]] static std::string num(double v, int significant = 4);
 
   [[nodiscard]] std::size_t rows() const { return rows_.size(); }

@@ -34,6 +34,7 @@
 #include <memory>
 #include <optional>
 
+#include "pedalwave/interface/clock.hpp"
 #include "pedalwave/telemetry/foxglove_server.hpp"
 #include "pedalwave/telemetry/mcap_recorder.hpp"
 #include "pedalwave/telemetry/monitor_view.hpp"
@@ -48,10 +49,9 @@ using Clock = std::chrono::steady_clock;
 volatile sig_atomic_t g_stop = 0;
 void on_signal(int) { g_stop = 1; }
 
-std::int64_t now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch())
-      .count();
-}
+// CLOCK_MONOTONIC through the project's one clock helper (steady_clock is the same clock).
+using pedalwave::monotonic_ns;
+std::int64_t now_ns() { return monotonic_ns(); }
 
 // Sends one command (once the robot is matched) and reports its ack through the monitor notices.
 struct PendingCommand {

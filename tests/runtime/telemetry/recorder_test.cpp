@@ -6,7 +6,10 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+#include <limits>
 
+#include "pedalwave/telemetry/names.hpp"
 #include "pedalwave/telemetry/recorder.hpp"
 
 namespace pedalwave::telemetry {
@@ -123,6 +126,110 @@ TEST_F(RecorderTest, LaterWidthChangeIsPaddedToTheHeaderAndCounted) {
   EXPECT_EQ(rows[1].size(), rows[0].size());
   EXPECT_EQ(rows[2].size(), rows[0].size()) << "a row must keep the header's column count";
   EXPECT_EQ(rows[2][5], "") << "missing joints are empty cells";
+}
+
+// The exact bytes of every topic's file: the tools reading recordings (pedalwave_plotrec,
+// pedalwave_identify, the monitor) rely on this layout. Numbers are written as fmt's "{}" writes
+// them (shortest round-trip digits, fixed from 1e-4 up to 1e16, exponent form outside);
+// integers in decimal; free text always quoted, enum names as they are.
+TEST_F(RecorderTest, WritesTheDocumentedBytes) {
+  const std::string base = (dir / "b").string();
+  {
+    CsvRecorder rec(base);
+    rec.on_joint_state(JointStateMsg{1, -5, 100000.0, {0.0001, -0.0}, {1e16, 1e15}, {5e-5, 1.0 / 3.0},
+                                     {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()},
+                                     {-std::numeric_limits<double>::infinity(), 123456.5}},
+                       MessageInfo{11, 22, 1});
+    ControllerStateMsg c;
+    c.seq = 18446744073709551615ull;
+    c.stamp_ns = -9223372036854775807ll;
+    c.t = 0.5;
+    c.mode = 4;
+    c.mode_name = "RUNNING";
+    c.alpha_d = {2.5};
+    c.eta = {0.25};
+    c.u = {-1e-7};
+    rec.on_controller_state(c, MessageInfo{1, 2, 3});
+    ObserverStateMsg o;
+    o.seq = 3;
+    o.residual = {0.1};
+    o.tau_ext = {0.2};
+    o.body = {1, 2, 3, 4, 5, 6};
+    o.fault_flags = 3;
+    o.fault_joint = -1;
+    o.forward_speed = 0.012;
+    rec.on_observer_state(o, MessageInfo{});
+    rec.on_loop_timing(LoopTimingMsg{7, 8, -9, 10, 11, 12, 13, 14, 15, 0}, MessageInfo{});
+    ModeEventMsg m;
+    m.from = 1;
+    m.to = 2;
+    m.from_name = "CONFIGURED";
+    m.to_name = "READY";
+    m.text = "plain";
+    m.value = 1e20;
+    m.event_seq = 2;
+    rec.on_mode_event(m, MessageInfo{});
+    DescriptionMsg d;
+    d.links = 3;
+    d.link_length = 0.1;
+    d.spring_stiffness = {3.0, 3.5};
+    d.rate_hz = 1000;
+    d.name = "snake";
+    d.driver = "sim";
+    rec.on_description(d, MessageInfo{});
+    OperatorCommandMsg cmd;
+    cmd.kind = 1;
+    cmd.id = 9;
+    cmd.amplitude = 0.7;
+    cmd.sender = "op";
+    cmd.target = "*";
+    rec.on_command(cmd, MessageInfo{});
+    CommandAckMsg ack;
+    ack.id = 9;
+    ack.kind = 1;
+    ack.status = AckStatus::kExecuted;
+    ack.reason = "";
+    ack.robot = "a\"b";
+    rec.on_command_ack(ack, MessageInfo{});
+  }
+  const auto bytes = [&](const char* topic) {
+    std::ifstream in(dir / ("b." + std::string(topic) + ".csv"), std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    return text.str();
+  };
+  EXPECT_EQ(bytes("joint_state"),
+            "recv_ns,source_time_ns,seq,stamp_ns,t,beta_0,beta_1,beta_dot_0,beta_dot_1,alpha_0,alpha_1,"
+            "deflection_0,deflection_1,tau_sea_0,tau_sea_1\n"
+            "11,22,1,-5,100000,0.0001,-0,1e+16,1000000000000000,5e-05,0.3333333333333333,nan,inf,"
+            "-inf,123456.5\n");
+  EXPECT_EQ(bytes("controller_state"),
+            "recv_ns,source_time_ns,seq,stamp_ns,t,mode,mode_name,alpha_d_0,eta_0,u_0\n"
+            "1,2,18446744073709551615,-9223372036854775807,0.5,4,RUNNING,2.5,0.25,-1e-07\n");
+  EXPECT_EQ(bytes("observer_state"),
+            "recv_ns,source_time_ns,seq,stamp_ns,residual_0,tau_ext_0,theta_N,p_x,p_z,theta_N_dot,"
+            "p_x_dot,p_z_dot,fault_flags,fault_names,fault_joint,forward_speed\n"
+            "0,0,3,0,0.1,0.2,1,2,3,4,5,6,3,\"" + fault_flags_names(3) + "\",-1,0.012\n");
+  EXPECT_EQ(bytes("loop_timing"),
+            "recv_ns,source_time_ns,seq,stamp_ns,wake_latency_ns,t_read_ns,t_observe_ns,t_control_ns,"
+            "t_write_ns,overruns,ring_drops\n"
+            "0,0,7,8,-9,10,11,12,13,14,15\n");
+  EXPECT_EQ(bytes("mode_event"),
+            "recv_ns,source_time_ns,seq,stamp_ns,from,from_name,to,to_name,text,event_seq,value,"
+            "severity\n"
+            "0,0,0,0,1,CONFIGURED,2,READY,\"plain\",2,1e+20,0\n");
+  EXPECT_EQ(bytes("robot_description"),
+            "recv_ns,source_time_ns,links,link_length,link_mass,rotor_mass,rotor_inertia,gear_ratio,"
+            "rate_hz,joint_state_rate_hz,controller_state_rate_hz,observer_state_rate_hz,"
+            "loop_timing_rate_hz,name,driver,spring_stiffness_0,spring_stiffness_1\n"
+            "0,0,3,0.1,0,0,0,0,1000,0,0,0,0,\"snake\",\"sim\",3,3.5\n");
+  EXPECT_EQ(bytes("command"),
+            "recv_ns,source_time_ns,id,kind,kind_name,amplitude,omega,eta,sender,target\n"
+            "0,0,9,1," + std::string(command_kind_name(1)) + ",0.7,0,0,\"op\",\"*\"\n");
+  EXPECT_EQ(bytes("command_ack"),
+            "recv_ns,source_time_ns,id,kind,kind_name,status,stamp_ns,reason,robot\n"
+            "0,0,9,1," + std::string(command_kind_name(1)) + ",executed,0,\"\",\"a\"\"b\"\n");
+  EXPECT_EQ(bytes("fault_event"), "");
 }
 
 TEST_F(RecorderTest, UnwritablePathThrowsAtConstruction) {

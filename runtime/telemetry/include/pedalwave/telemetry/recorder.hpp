@@ -7,13 +7,17 @@
 // source timestamp, CLOCK_REALTIME [ns]). Per-joint columns are <field>_<j>, j = 0..N-2, with N
 // taken from the topic's first message; a later message with another joint count (robot restarted
 // with other parameters) is padded/truncated to the header and counted in width_mismatches().
-// Doubles are written in shortest round-trip form; text fields are quoted ("" escapes ").
+// Written with the project's CSV writer (pedalwave::csv): doubles in shortest round-trip form
+// (csv::Numbers::kFixed: fixed from 1e-4 to 1e16, exponent form outside), integers in decimal,
+// free-text fields always quoted ("" escapes "), enum names as they are.
 #pragma once
 
-#include <cstdio>
+#include <cstdint>
 #include <map>
-#include <memory>
 #include <string>
+#include <vector>
+
+#include "pedalwave/csv/csv.hpp"
 
 #include "pedalwave/telemetry/subscriber.hpp"
 
@@ -44,14 +48,11 @@ class CsvRecorder final : public TelemetryListener {
 
  private:
   struct File {
-    std::FILE* f = nullptr;
-    std::string path;
-    bool header_written = false;
+    csv::Writer w;                // created by the constructor; header with the first message
     int joints = 0;               // per-joint column count fixed by the header
-    std::uint64_t rows = 0;
   };
   File& file(const char* topic);
-  void write_row(File& f, const std::string& row);
+  csv::Writer& start(File& f, int joints, std::vector<std::string> (*header)(int));
 
   std::string stem_;
   std::map<std::string, File> files_;

@@ -39,6 +39,7 @@
 #include "pedalwave/model/plant.hpp"
 #include "pedalwave/toolkit/cli.hpp"
 #include "pedalwave/toolkit/table.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace {
 
@@ -50,12 +51,6 @@ constexpr char kTool[] = "pedalwave_bench_mujoco";
 constexpr double kPeriod = 1e-3;  // control period [s]
 constexpr double kKp = 30.0, kKd = 15.0;
 constexpr double kSphere = 1e-3;  // MuJoCo contact sphere radius [m]
-
-double thread_cpu_s() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
 
 // The gait's reference for joint j at t: α^d_j and α̇^d_j.
 void gait_ref(const pm::Scene& s, int j, double t, double& ref, double& ref_dot) {
@@ -95,7 +90,7 @@ Run run_pedalwave(const pm::Scene& scene, const pm::IntegratorOptions& integ, do
     r.com_z.push_back(c.y());
   };
   record();
-  const double t0 = thread_cpu_s();
+  const double t0 = pedalwave::thread_cpu_s();
   for (int k = 0; k < steps; ++k) {
     const double t = k * kPeriod;
     for (int j = 0; j < m.joints(); ++j) gait_ref(scene, j, t, in.beta_ref(j), in.beta_dot_ref(j));
@@ -105,7 +100,7 @@ Run run_pedalwave(const pm::Scene& scene, const pm::IntegratorOptions& integ, do
     }
     record();
   }
-  r.cpu = thread_cpu_s() - t0;  // (includes the COM recording, as the MuJoCo run does)
+  r.cpu = pedalwave::thread_cpu_s() - t0;  // (includes the COM recording, as the MuJoCo run does)
   return r;
 }
 
@@ -254,7 +249,7 @@ Run run_mujoco(const pm::Scene& s, const MjRobot& r, double h, double T) {
     out.com_z.push_back(cz / mass);
   };
   record();
-  const double t0 = thread_cpu_s();
+  const double t0 = pedalwave::thread_cpu_s();
   for (int k = 0; k < steps && out.ok; ++k) {
     const double t = k * kPeriod;
     for (int j = 0; j < r.N - 1; ++j) {
@@ -268,7 +263,7 @@ Run run_mujoco(const pm::Scene& s, const MjRobot& r, double h, double T) {
       if (!std::isfinite(d->qpos[i])) out.ok = false;
     record();
   }
-  out.cpu = thread_cpu_s() - t0;
+  out.cpu = pedalwave::thread_cpu_s() - t0;
   mj_deleteData(d);
   return out;
 }

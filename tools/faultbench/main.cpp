@@ -21,6 +21,7 @@
 #include "pedalwave/campaign/cli.hpp"
 #include "pedalwave/toolkit/format.hpp"
 #include "pedalwave/toolkit/table.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 using namespace pedalwave;
 using faultbench::LoopOptions;
@@ -332,13 +333,11 @@ void timing(int cycles) {
       for (int i = 0; i < cycles; ++i) {
         loop.step();
         // Thread CPU time: what observe() costs, without the preemptions of a shared machine.
-        timespec a{}, b{};
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &a);
+        const std::int64_t a = clock_ns(CLOCK_THREAD_CPUTIME_ID);
         (void)twin.observe(loop.feedback(), last, loop.t(), 1e-3, sample);
-        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &b);
+        const std::int64_t b = clock_ns(CLOCK_THREAD_CPUTIME_ID);
         last = loop.command();
-        us.push_back(static_cast<double>(b.tv_sec - a.tv_sec) * 1e6 +
-                     static_cast<double>(b.tv_nsec - a.tv_nsec) * 1e-3);
+        us.push_back(static_cast<double>(b - a) * 1e-3);
       }
       med[body] = quantile(us, 0.5);
       if (body == 1) p99 = quantile(us, 0.99), mx = quantile(us, 1.0);

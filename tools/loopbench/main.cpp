@@ -55,6 +55,7 @@
 #include "pedalwave/telemetry/subscriber.hpp"
 #include "pedalwave/toolkit/format.hpp"
 #include "pedalwave/toolkit/table.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 extern char** environ;
 
@@ -297,12 +298,6 @@ double cpu_seconds(int who) {
          1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
-double thread_cpu_seconds() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
 PhaseResult run_phase(const Options& o, int joints, const std::string& phase, int decimation,
                       bool secure, const std::string& scene_path, SubscriberProcess* sub) {
   PhaseResult pr;
@@ -359,7 +354,7 @@ PhaseResult run_phase(const Options& o, int joints, const std::string& phase, in
   const auto t0 = Clock::now();
   std::thread loop([&] {
     pr.run = rt->run();
-    pr.loop_cpu = thread_cpu_seconds();
+    pr.loop_cpu = pedalwave::thread_cpu_s();
   });
   loop.join();
   pr.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();

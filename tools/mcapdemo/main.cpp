@@ -39,6 +39,7 @@
 #include "pedalwave/toolkit/cli.hpp"
 #include "pedalwave/toolkit/format.hpp"
 #include "pedalwave/toolkit/json.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace mcap = pedalwave::mcap;
 namespace tk = pedalwave::toolkit;
@@ -128,9 +129,7 @@ int run(const std::string& out_path, const std::string& compression, std::uint64
 
   std::uint64_t t0 = start_ns;
   if (t0 == 0) {
-    timespec now{};
-    clock_gettime(CLOCK_REALTIME, &now);
-    t0 = static_cast<std::uint64_t>(now.tv_sec) * 1'000'000'000ull + static_cast<std::uint64_t>(now.tv_nsec);
+    t0 = static_cast<std::uint64_t>(pedalwave::clock_ns(CLOCK_REALTIME));
   }
 
   // The robot description, once (a tiny URDF-like text with characters JSON must escape).

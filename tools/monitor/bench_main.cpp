@@ -37,6 +37,7 @@
 #include "pedalwave/telemetry/dds_telemetry.hpp"
 #include "pedalwave/telemetry/subscriber.hpp"
 #include "pedalwave/telemetry/synthetic.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace {
 
@@ -45,12 +46,6 @@ using namespace pedalwave;
 volatile sig_atomic_t g_stop = 0;
 void on_signal(int) { g_stop = 1; }
 
-double thread_cpu_s() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
 double process_cpu_s() {
   rusage ru{};
   getrusage(RUSAGE_SELF, &ru);
@@ -58,11 +53,7 @@ double process_cpu_s() {
          1e-6 * static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
 }
 
-double mono_s() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
+double mono_s() { return 1e-9 * static_cast<double>(monotonic_ns()); }
 
 void write_line(int fd, const std::string& s) {
   const std::string l = s + "\n";
@@ -81,9 +72,7 @@ struct Counts : telemetry::TelemetryListener {
   std::vector<double> latency_us;   // joint_state: source timestamp -> take (both CLOCK_REALTIME)
   void on_joint_state(const telemetry::JointStateMsg&, const telemetry::MessageInfo& mi) override {
     ++joint;
-    timespec ts{};
-    clock_gettime(CLOCK_REALTIME, &ts);
-    const std::int64_t now = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+    const std::int64_t now = clock_ns(CLOCK_REALTIME);
     latency_us.push_back(1e-3 * static_cast<double>(now - mi.source_time_ns));
   }
   void on_controller_state(const telemetry::ControllerStateMsg&,
@@ -160,8 +149,7 @@ telemetry::SecurityConfig security_for(const char* enclave) {
     std::vector<double> call_us;
     call_us.reserve(cycles);
     const auto period_ns = static_cast<long>(1e9 / rate);
-    timespec next{};
-    clock_gettime(CLOCK_MONOTONIC, &next);
+    timespec next = to_timespec(monotonic_ns());
     const double wall0 = mono_s(), cpu0 = thread_cpu_s(), proc0 = process_cpu_s();
     for (std::uint64_t seq = 0; seq < cycles; ++seq) {
       runtime::CycleSample& s = samples[seq % samples.size()];

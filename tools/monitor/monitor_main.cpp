@@ -51,7 +51,6 @@ void on_signal(int) { g_stop = 1; }
 
 // CLOCK_MONOTONIC through the project's one clock helper (steady_clock is the same clock).
 using pedalwave::monotonic_ns;
-std::int64_t now_ns() { return monotonic_ns(); }
 
 // Sends one command (once the robot is matched) and reports its ack through the monitor notices.
 struct PendingCommand {
@@ -225,7 +224,7 @@ int main(int argc, char** argv) {
   if (!command.empty()) {
     PendingCommand p;
     p.cmd.kind = *parse_kind(command);
-    p.cmd.id = static_cast<std::uint64_t>(now_ns());
+    p.cmd.id = static_cast<std::uint64_t>(monotonic_ns());
     p.cmd.amplitude = amplitude;
     p.cmd.omega = omega;
     p.cmd.eta = eta;
@@ -260,7 +259,7 @@ int main(int argc, char** argv) {
   int status = 0;
   while (g_stop == 0) {
     sub->poll(std::chrono::milliseconds(50));
-    const std::int64_t t = now_ns();
+    const std::int64_t t = monotonic_ns();
     state.tick(t);
     if (pending && !pending->sent && sub->wait_for_robot(std::chrono::milliseconds(0))) {
       pending->sent = sub->send_command(pending->cmd);
@@ -294,7 +293,7 @@ int main(int argc, char** argv) {
       for (const auto end = Clock::now() + std::chrono::seconds(1);
            pending && Clock::now() < end;) {
         sub->poll(std::chrono::milliseconds(50));
-        state.tick(now_ns());
+        state.tick(monotonic_ns());
       }
       break;
     }
@@ -320,7 +319,7 @@ int main(int argc, char** argv) {
 
   if (live_view) std::fputs("\x1b[?25h\n", stdout);  // show cursor again
   if (once) {
-    std::fputs(state.render(now_ns(), tty).c_str(), stdout);
+    std::fputs(state.render(monotonic_ns(), tty).c_str(), stdout);
     if (status == 2) std::fprintf(stderr, "pedalwave_monitor: no complete telemetry within %.1f s\n", limit_s);
   }
   if (mcap) {

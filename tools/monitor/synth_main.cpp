@@ -21,6 +21,7 @@
 #include "pedalwave/telemetry/dds_telemetry.hpp"
 #include "pedalwave/telemetry/names.hpp"
 #include "pedalwave/telemetry/synthetic.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace {
 
@@ -88,8 +89,7 @@ int main(int argc, char** argv) {
     const auto period_ns = static_cast<std::int64_t>(1e9 / rate);
     const auto fault_cycles = static_cast<std::uint64_t>(fault_every_s * rate);
     const auto total = static_cast<std::uint64_t>(duration_s * rate);
-    timespec next{};
-    clock_gettime(CLOCK_MONOTONIC, &next);
+    timespec next = to_timespec(monotonic_ns());
     bool stopped = false;
     std::uint64_t k = 0;
     for (std::uint64_t seq = 0; g_stop == 0 && (total == 0 || seq < total); ++seq) {

@@ -14,16 +14,11 @@
 #include "pedalwave/model/kinematics.hpp"
 #include "pedalwave/model/plant.hpp"
 #include "pedalwave/simloop/closed_loop.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace pedalwave::paper {
 
 namespace {
-
-double thread_cpu_s() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
 
 // Whole control periods in `seconds`, or −1 when it is not a whole number.
 long long periods_in(double seconds, double rate_hz) {

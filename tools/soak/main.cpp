@@ -46,6 +46,7 @@
 #include "pedalwave/toolkit/figures.hpp"
 #include "pedalwave/toolkit/json.hpp"
 #include "soak.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace fs = std::filesystem;
 namespace sk = pedalwave::soak;
@@ -63,14 +64,8 @@ volatile std::int64_t g_first_signal_ns = 0;
 volatile pid_t g_children[2] = {-1, -1};  // the runtime and the virtual robot
 tk::CpuLoad* g_load = nullptr;            // its pids are read by the handler (kill only)
 
-std::int64_t mono_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);  // async-signal-safe
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 extern "C" void on_signal(int) {
-  const std::int64_t now = mono_ns();
+  const std::int64_t now = pedalwave::monotonic_ns();
   if (!g_stop) {
     g_first_signal_ns = now;
     g_stop = 1;

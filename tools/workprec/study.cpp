@@ -14,6 +14,7 @@
 #include "pedalwave/model/kinematics.hpp"
 #include "pedalwave/model/plant.hpp"
 #include "pedalwave/simloop/closed_loop.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace pedalwave::workprec {
 
@@ -27,12 +28,6 @@ const char* to_string(RunStatus s) {
 }
 
 namespace {
-
-double thread_cpu_s() {
-  timespec ts{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
 
 void sample(model::Simulation& sim, double t, Trajectory& tr) {
   const model::Model& m = sim.plant().model();

@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "pedalwave/telemetry/ros2_definitions.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace pedalwave::telemetry {
 
@@ -329,11 +330,9 @@ FoxgloveServer::~FoxgloveServer() {
 void FoxgloveServer::on_raw(std::size_t topic, std::span<const std::byte> cdr, const MessageInfo&) {
   Impl& m = *impl_;
   if (topic >= m.subscribers.size() || m.subscribers[topic].load() <= 0) return;
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
   Pending p;
   p.channel = topic;
-  p.t_ns = static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000'000u + static_cast<std::uint64_t>(ts.tv_nsec);
+  p.t_ns = static_cast<std::uint64_t>(clock_ns(CLOCK_REALTIME));
   p.data.assign(cdr.begin(), cdr.end());
   {
     const std::lock_guard<std::mutex> lock(m.mu);

@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "pedalwave/telemetry/ros2_definitions.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace pedalwave::telemetry {
 
@@ -43,10 +44,7 @@ McapRecorder::~McapRecorder() = default;  // the Writer's destructor finishes th
 
 void McapRecorder::on_raw(std::size_t topic, std::span<const std::byte> cdr, const MessageInfo& info) {
   if (!error_.empty() || !writer_->is_open()) return;
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
-  const auto now = static_cast<mcap::Timestamp>(ts.tv_sec) * 1'000'000'000u +
-                   static_cast<mcap::Timestamp>(ts.tv_nsec);
+  const auto now = static_cast<mcap::Timestamp>(clock_ns(CLOCK_REALTIME));
   mcap::Message m;
   m.channel = channels_.at(topic);
   m.sequence = static_cast<std::uint32_t>(counts_[topic] + 1);

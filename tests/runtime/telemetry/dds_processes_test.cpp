@@ -12,6 +12,7 @@
 #include "pedalwave/telemetry/dds_telemetry.hpp"
 #include "pedalwave/telemetry/monitor_view.hpp"
 #include "pedalwave/telemetry/synthetic.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace pedalwave::test {
 namespace {
@@ -115,11 +116,7 @@ TEST(DdsProcesses, MonitorSurvivesRobotKilledAndRestarted) {
   telemetry::MonitorState monitor(300'000'000);  // silent after 300 ms
   sub.add_listener(got);
   sub.add_listener(monitor);
-  const auto now_ns = [] {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-  };
+  const auto now_ns = [] { return pedalwave::monotonic_ns(); };
   const auto pump = [&](std::chrono::milliseconds d) {
     const auto end = std::chrono::steady_clock::now() + d;
     while (std::chrono::steady_clock::now() < end) {

@@ -21,6 +21,7 @@
 #include "pedalwave/telemetry/dds_telemetry.hpp"
 #include "pedalwave/telemetry/subscriber.hpp"
 #include "pedalwave/telemetry/synthetic.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace {
 
@@ -94,8 +95,7 @@ int publish(const Args& a) {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
   }
   const auto period_ns = static_cast<std::int64_t>(1e9 / a.rate);
-  timespec next{};
-  clock_gettime(CLOCK_MONOTONIC, &next);
+  timespec next = pedalwave::to_timespec(pedalwave::monotonic_ns());
   for (long i = 0; i < a.cycles; ++i) {
     tel.on_cycle(robot.sample(a.start_seq + static_cast<std::uint64_t>(i)));
     next.tv_nsec += period_ns;

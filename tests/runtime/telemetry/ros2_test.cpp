@@ -22,6 +22,7 @@
 #include "pedalwave/telemetry/names.hpp"
 #include "pedalwave/telemetry/ros_standard.hpp"
 #include "pedalwave/telemetry/synthetic.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace pedalwave::test {
 namespace {
@@ -31,12 +32,6 @@ using runtime::Mode;
 using runtime::OperatorCommand;
 using runtime::OperatorCommandKind;
 using telemetry::AckStatus;
-
-std::int64_t clock_ns(clockid_t id) {
-  timespec ts{};
-  clock_gettime(id, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 telemetry::TelemetryConfig robot_config(std::uint32_t domain, const std::string& name) {
   telemetry::TelemetryConfig c;

@@ -47,9 +47,9 @@ class Tool {
   }
   // Reads until `needle` appears in the output or the tool closes it (EOF) / timeout_s passes.
   bool read_until(const std::string& needle, double timeout_s) {
-    const std::int64_t end = test::mono_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
+    const std::int64_t end = pedalwave::monotonic_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
     while (text.find(needle) == std::string::npos) {
-      const std::int64_t left_ms = (end - test::mono_ns()) / 1'000'000;
+      const std::int64_t left_ms = (end - pedalwave::monotonic_ns()) / 1'000'000;
       if (left_ms <= 0) return false;
       pollfd pf{out_, POLLIN, 0};
       if (::poll(&pf, 1, static_cast<int>(left_ms)) <= 0) continue;

@@ -31,23 +31,18 @@
 #include "pedalwave/drivers/serial_driver.hpp"
 #include "pedalwave/drivers/socketcan_driver.hpp"
 #include "pedalwave/vrobot/virtual_robot.hpp"
+#include "pedalwave/interface/clock.hpp"
 
 namespace pedalwave::test {
 
 inline const char* kScenePath = PEDALWAVE_CONFIG_DIR "/scenes/flat_high_friction.yaml";
 
-inline std::int64_t mono_ns() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return ts.tv_sec * 1'000'000'000LL + ts.tv_nsec;
-}
-
 // Polls every 2 ms until pred() or timeout_s of wall time; returns pred(). (A wait for an event
 // that must happen, not a timing assertion: the timeout only keeps a broken run from hanging.)
 template <class Pred>
 bool wait_until(Pred pred, double timeout_s) {
-  const std::int64_t end = mono_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
-  while (!pred() && mono_ns() < end) {
+  const std::int64_t end = monotonic_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
+  while (!pred() && monotonic_ns() < end) {
     const timespec ts{0, 2'000'000};
     nanosleep(&ts, nullptr);
   }

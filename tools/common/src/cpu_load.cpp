@@ -15,18 +15,14 @@
 #include <string>
 #include <system_error>
 
+#include "pedalwave/interface/clock.hpp"
+
 namespace pedalwave::toolkit {
 
 namespace {
 
 constexpr std::int64_t kPeriodNs = 10'000'000;  // duty-cycle period [ns]
 volatile double g_sink = 0.0;  // the arithmetic's result, so the compiler keeps it
-
-std::int64_t mono_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 // The child's whole life: async-signal-safe calls only (it was forked, maybe from a threaded
 // process). SIGINT/SIGTERM back to their default action (end the child), not the parent's
@@ -39,8 +35,8 @@ std::int64_t mono_ns() {
   ::sigaction(SIGTERM, &dfl, nullptr);
   double x = 1.0;
   for (;;) {
-    const std::int64_t t0 = mono_ns();
-    while (mono_ns() - t0 < busy_ns) {
+    const std::int64_t t0 = pedalwave::monotonic_ns();
+    while (pedalwave::monotonic_ns() - t0 < busy_ns) {
       for (int k = 0; k < 1000; ++k) x = x * 1.0000001 + 1e-9;
       if (x > 1e300) x = 1.0;
       g_sink = x;

@@ -7,7 +7,7 @@ pedalwave_plot_recording runs it (it writes OUT/body.csv, the body placed by the
   OUT/body.csv                                                 -> OUT/snake_shapes.png, OUT/paths.png
 
 Each topic is drawn on its own time stamps (stamp_ns, from the joint samples' first). Joint
-columns are 0-based in the recording (alpha_0) and 1-based in the legends (α_1).
+columns are 1-based, as the legends (alpha_1 is α_1).
 
     /usr/bin/python3 tools/figures/recording.py run out/recording [--every 1.0]
 """
@@ -41,11 +41,11 @@ def run(args):
     panels = [(js, "alpha", "α [rad] (measured)", "α"), (cs, "alpha_d", "α^d [rad]", "α^d"),
               (js, "tau_sea", "SEA torque τ_s [N·m]", "τ_s"), (cs, "u", "command u [N·m]", "u"),
               (obs, "residual", "residual r [N·m]", "r")]
-    panels = [p for p in panels if p[0] is not None and p[0].numbered(p[1], 0)]
+    panels = [p for p in panels if p[0] is not None and p[0].numbered(p[1])]
     fig, axes = pwfig.stacked(f"Recorded joint signals ({base})", t, len(panels), panel_height=1.8)
     for ax, (tab, field, label, sym) in zip(axes, panels):
         tt = (tab["stamp_ns"] - t0) * 1e-9
-        for j, y in enumerate(tab.numbered(field, 0)):
+        for j, y in enumerate(tab.numbered(field)):
             ax.plot(tt, y, lw=1.2, label=f"{sym}_{j + 1}")
         ax.set_ylabel(label)
     pwfig.finish_stacked(fig, axes, os.path.join(out, "joint_signals.png"))

@@ -223,15 +223,16 @@ class RecorderCsv {
       throw std::runtime_error(where(row) + ", column " + column + " = \"" + text + "\": expected an integer");
     return v;
   }
-  // Columns <prefix>_0, <prefix>_1, … present in the header.
+  // Columns <prefix>_1, <prefix>_2, … (1-based) present in the header.
   [[nodiscard]] int count(const std::string& prefix) const {
     int n = 0;
-    while (has(prefix + "_" + std::to_string(n))) ++n;
+    while (has(prefix + "_" + std::to_string(n + 1))) ++n;
     return n;
   }
+  // Columns <prefix>_1 … <prefix>_n of a row, as the 0-based array [0, n).
   [[nodiscard]] std::vector<double> joints(std::size_t row, const std::string& prefix, int n) const {
     std::vector<double> v;
-    for (int i = 0; i < n; ++i) v.push_back(number(row, prefix + "_" + std::to_string(i)));
+    for (int i = 1; i <= n; ++i) v.push_back(number(row, prefix + "_" + std::to_string(i)));
     return v;
   }
   void require(const std::string& column, const std::string& what) const {
@@ -281,8 +282,8 @@ Recording read_recorder_csv(const fs::path& joint_state_csv, const fs::path& con
   const RecorderCsv js(joint_state_csv), cs(controller_state_csv);
   const std::string what_js = "the CSV recorder's joint_state columns seq, stamp_ns, t, beta_j, beta_dot_j, alpha_j";
   const std::string what_cs = "the CSV recorder's controller_state columns seq, stamp_ns, mode, u_j";
-  for (const char* c : {"seq", "stamp_ns", "t", "beta_0", "beta_dot_0", "alpha_0"}) js.require(c, what_js);
-  for (const char* c : {"seq", "stamp_ns", "mode", "u_0"}) cs.require(c, what_cs);
+  for (const char* c : {"seq", "stamp_ns", "t", "beta_1", "beta_dot_1", "alpha_1"}) js.require(c, what_js);
+  for (const char* c : {"seq", "stamp_ns", "mode", "u_1"}) cs.require(c, what_cs);
   const int nj = js.count("beta"), nc = cs.count("u");
   std::vector<JointRow> joints;
   std::vector<ControllerRow> controller;

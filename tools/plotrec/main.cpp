@@ -38,9 +38,10 @@ Table read_table(const std::string& path, bool required) {
   return t;
 }
 
+// Joint columns <field>_1, <field>_2, … (1-based) in the recording.
 int joints_of(const Table& t, const std::string& field) {
   int n = 0;
-  while (t.has(field + "_" + std::to_string(n))) ++n;
+  while (t.has(field + "_" + std::to_string(n + 1))) ++n;
   return n;
 }
 
@@ -88,7 +89,7 @@ int main(int argc, char** argv) {
       for (std::size_t i = 0; i < os.rows(); ++i) {
         while (k + 1 < js.rows() && seq_j[k + 1] <= seq_o[i]) ++k;  // joint sample of that cycle
         Eigen::VectorXd q(m.nq());
-        for (int j = 0; j < J; ++j) q(j) = js.column("alpha_" + std::to_string(j))[k];
+        for (int j = 0; j < J; ++j) q(j) = js.column("alpha_" + std::to_string(j + 1))[k];
         q(m.i_theta_N()) = os.column("theta_N")[i];
         q(m.i_px()) = os.column("p_x")[i];
         q(m.i_pz()) = os.column("p_z")[i];

@@ -25,9 +25,10 @@ std::vector<std::string> columns(std::initializer_list<const char*> names) {
   return h;
 }
 
-// name_0, name_1, ... for n joints.
+// name_1, name_2, ..., name_n for n joints (1-based, as every name a person reads; the message's
+// arrays are 0-based: column name_j holds element j-1).
 void add_joint_columns(std::vector<std::string>& h, const char* name, int n) {
-  for (int j = 0; j < n; ++j) h.push_back(std::string(name) + "_" + std::to_string(j));
+  for (int j = 1; j <= n; ++j) h.push_back(std::string(name) + "_" + std::to_string(j));
 }
 
 // n cells: the values, padded with empty cells / truncated to n.

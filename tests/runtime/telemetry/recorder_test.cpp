@@ -77,9 +77,9 @@ TEST_F(RecorderTest, WritesOneFilePerTopicWithHeaderAndExactValues) {
   const auto js = read_csv((dir / "run.joint_state.csv").string());
   ASSERT_EQ(js.size(), 3u);
   const std::vector<std::string> header = {
-      "recv_ns", "source_time_ns", "seq", "stamp_ns", "t", "beta_0", "beta_1", "beta_dot_0",
-      "beta_dot_1", "alpha_0", "alpha_1", "deflection_0", "deflection_1", "tau_sea_0",
-      "tau_sea_1"};
+      "recv_ns", "source_time_ns", "seq", "stamp_ns", "t", "beta_1", "beta_2", "beta_dot_1",
+      "beta_dot_2", "alpha_1", "alpha_2", "deflection_1", "deflection_2", "tau_sea_1",
+      "tau_sea_2"};
   EXPECT_EQ(js[0], header);
   ASSERT_EQ(js[1].size(), header.size());
   EXPECT_EQ(js[1][0], "11");
@@ -128,7 +128,7 @@ TEST_F(RecorderTest, LaterWidthChangeIsPaddedToTheHeaderAndCounted) {
   EXPECT_EQ(rows[2][5], "") << "missing joints are empty cells";
 }
 
-// The exact bytes of every topic's file: the tools reading recordings (pedalwave_plotrec,
+// The exact bytes of every topic's file (per-joint columns 1-based: beta_1 is beta[0]): the tools reading recordings (pedalwave_plotrec,
 // pedalwave_identify, the monitor) rely on this layout. Numbers are written as fmt's "{}" writes
 // them (shortest round-trip digits, fixed from 1e-4 up to 1e16, exponent form outside);
 // integers in decimal; free text always quoted, enum names as they are.
@@ -199,15 +199,15 @@ TEST_F(RecorderTest, WritesTheDocumentedBytes) {
     return text.str();
   };
   EXPECT_EQ(bytes("joint_state"),
-            "recv_ns,source_time_ns,seq,stamp_ns,t,beta_0,beta_1,beta_dot_0,beta_dot_1,alpha_0,alpha_1,"
-            "deflection_0,deflection_1,tau_sea_0,tau_sea_1\n"
+            "recv_ns,source_time_ns,seq,stamp_ns,t,beta_1,beta_2,beta_dot_1,beta_dot_2,alpha_1,alpha_2,"
+            "deflection_1,deflection_2,tau_sea_1,tau_sea_2\n"
             "11,22,1,-5,100000,0.0001,-0,1e+16,1000000000000000,5e-05,0.3333333333333333,nan,inf,"
             "-inf,123456.5\n");
   EXPECT_EQ(bytes("controller_state"),
-            "recv_ns,source_time_ns,seq,stamp_ns,t,mode,mode_name,alpha_d_0,eta_0,u_0\n"
+            "recv_ns,source_time_ns,seq,stamp_ns,t,mode,mode_name,alpha_d_1,eta_1,u_1\n"
             "1,2,18446744073709551615,-9223372036854775807,0.5,4,RUNNING,2.5,0.25,-1e-07\n");
   EXPECT_EQ(bytes("observer_state"),
-            "recv_ns,source_time_ns,seq,stamp_ns,residual_0,tau_ext_0,theta_N,p_x,p_z,theta_N_dot,"
+            "recv_ns,source_time_ns,seq,stamp_ns,residual_1,tau_ext_1,theta_N,p_x,p_z,theta_N_dot,"
             "p_x_dot,p_z_dot,fault_flags,fault_names,fault_joint,forward_speed\n"
             "0,0,3,0,0.1,0.2,1,2,3,4,5,6,3,\"" + fault_flags_names(3) + "\",-1,0.012\n");
   EXPECT_EQ(bytes("loop_timing"),
@@ -221,7 +221,7 @@ TEST_F(RecorderTest, WritesTheDocumentedBytes) {
   EXPECT_EQ(bytes("robot_description"),
             "recv_ns,source_time_ns,links,link_length,link_mass,rotor_mass,rotor_inertia,gear_ratio,"
             "rate_hz,joint_state_rate_hz,controller_state_rate_hz,observer_state_rate_hz,"
-            "loop_timing_rate_hz,name,driver,spring_stiffness_0,spring_stiffness_1\n"
+            "loop_timing_rate_hz,name,driver,spring_stiffness_1,spring_stiffness_2\n"
             "0,0,3,0.1,0,0,0,0,1000,0,0,0,0,\"snake\",\"sim\",3,3.5\n");
   EXPECT_EQ(bytes("command"),
             "recv_ns,source_time_ns,id,kind,kind_name,amplitude,omega,eta,sender,target\n"

@@ -177,7 +177,7 @@ TEST_F(Figures, RecordingDrawsJointSignalsLoopTimingShapesAndPath) {
   REQUIRE_MATPLOTLIB();
   {
     std::ofstream js(dir_ / "run.joint_state.csv"), lt(dir_ / "run.loop_timing.csv");
-    js << "seq,stamp_ns,alpha_0,alpha_1,tau_sea_0,tau_sea_1\n";
+    js << "seq,stamp_ns,alpha_1,alpha_2,tau_sea_1,tau_sea_2\n";
     lt << "seq,stamp_ns,wake_latency_ns\n";
     for (int k = 0; k < 300; ++k) {
       const double t = 0.01 * k;

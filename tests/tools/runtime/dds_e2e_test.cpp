@@ -551,8 +551,9 @@ TEST(DdsEndToEnd, RuntimePublishesEveryTopicConsistentlyAndLateJoinersCatchUp) {
   }
   {
     const Csv js = read_csv(dir + "/early.joint_state.csv");
-    ASSERT_TRUE(js.col.count("alpha_" + std::to_string(J - 1))) << "N−1 joint columns";
-    EXPECT_FALSE(js.col.count("alpha_" + std::to_string(J))) << "no more than N−1 joint columns";
+    ASSERT_TRUE(js.col.count("alpha_" + std::to_string(J))) << "N−1 joint columns, 1-based";
+    EXPECT_FALSE(js.col.count("alpha_" + std::to_string(J + 1))) << "no more than N−1 joint columns";
+    EXPECT_FALSE(js.col.count("alpha_0")) << "joint columns are 1-based";
   }
   // Late monitor process: description and the mode events from before it started.
   const Csv desc = read_csv(dir + "/late.robot_description.csv");

@@ -20,11 +20,11 @@ void write_recording(const fs::path& dir, bool cut_last_line) {
       rd(dir / "run.robot_description.csv");
   js << "recv_ns,source_time_ns,seq,stamp_ns,t";
   for (const char* f : {"beta", "beta_dot", "alpha", "deflection", "tau_sea"})
-    for (int j = 0; j < J; ++j) js << "," << f << "_" << j;
+    for (int j = 1; j <= J; ++j) js << "," << f << "_" << j;
   js << "\n";
   os << "recv_ns,source_time_ns,seq,stamp_ns";
   for (const char* f : {"residual", "tau_ext"})
-    for (int j = 0; j < J; ++j) os << "," << f << "_" << j;
+    for (int j = 1; j <= J; ++j) os << "," << f << "_" << j;
   os << ",theta_N,p_x,p_z,theta_N_dot,p_x_dot,p_z_dot,fault_flags,fault_names,fault_joint,forward_speed\n";
   rd << "recv_ns,source_time_ns,links,link_length\n0,0,6,0.07\n";
   for (int k = 0; k < 300; ++k) {

@@ -78,7 +78,8 @@ export function loadCsv(stem, name) {
 }
 
 // A decoded message against its CSV row: every column (but the receiver's recv_ns and
-// source_time_ns) is a field, or element k of an array field for `<field>_<k>`; numbers equal
+// source_time_ns) is a field, or element k−1 of an array field for `<field>_<k>` (the joint
+// columns are 1-based: alpha_1 is alpha[0]); numbers equal
 // exactly (the CSV holds shortest round-trip doubles), int64 and strings as text; arrays exactly
 // as long as the row's columns for them.
 // CSV columns named otherwise than the message's fields (recorder.cpp).
@@ -103,7 +104,8 @@ export function compareToRow(msg, row, header, where) {
     } else {
       const m = /^(.+)_(\d+)$/.exec(col);
       check(m && Array.isArray(msg[m[1]]), `${where}: CSV column ${col} is no field of the message`);
-      value = msg[m[1]][Number(m[2])];
+      check(Number(m[2]) >= 1, `${where}: CSV column ${col}: joint columns are 1-based`);
+      value = msg[m[1]][Number(m[2]) - 1];
       arrayColumns.set(m[1], (arrayColumns.get(m[1]) ?? 0) + 1);
     }
     const text = row[col];

@@ -4,7 +4,8 @@
 // command, command_ack. All files are created by the constructor (an unwritable path throws
 // std::runtime_error there, not mid-run); each gets its header line with its first message.
 // Every row starts with recv_ns (receiver CLOCK_MONOTONIC [ns]) and source_time_ns (writer's DDS
-// source timestamp, CLOCK_REALTIME [ns]). Per-joint columns are <field>_<j>, j = 0..N-2, with N
+// source timestamp, CLOCK_REALTIME [ns]). Per-joint columns are <field>_<j>, j = 1..N-1 (1-based, as the ROS joint
+// names joint_1 …; the values of `joint` / `fault_joint` stay 0-based indices, −1 none), with N
 // taken from the topic's first message; a later message with another joint count (robot restarted
 // with other parameters) is padded/truncated to the header and counted in width_mismatches().
 // Written with the project's CSV writer (pedalwave::csv): doubles in shortest round-trip form

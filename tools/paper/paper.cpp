@@ -14,6 +14,7 @@
 #include <stdexcept>
 
 #include "pedalwave/config/scene.hpp"
+#include "pedalwave/toolkit/body_csv.hpp"
 #include "pedalwave/toolkit/csv.hpp"
 #include "pedalwave/toolkit/figures.hpp"
 #include "pedalwave/toolkit/format.hpp"
@@ -177,27 +178,14 @@ void write_figure(const Settings& s, const std::string& name, tk::Json spec) {
 // points when sampled); returns its file name in the data folder.
 std::string write_trace(const Settings& s, const std::string& name, const Trace& tr) {
   const std::size_t P = tr.body_x.empty() ? 0 : tr.body_x.front().size();
-  std::vector<std::string> header{"t", "com_x", "com_z", "head_x", "head_z", "tail_x", "tail_z", "tau_head", "eta_head"};
-  for (const char* axis : {"x_", "z_"})
-    for (std::size_t k = 0; k < P; ++k) header.push_back(axis + std::to_string(k));
   const std::string file = name + ".csv";
-  tk::CsvWriter csv(data_dir(s) / file, header);
-  std::vector<double> row(header.size());
+  tk::BodyPointsCsv csv(data_dir(s) / file,
+                        {"t", "com_x", "com_z", "head_x", "head_z", "tail_x", "tail_z", "tau_head", "eta_head"}, P);
   for (std::size_t i = 0; i < tr.t.size(); ++i) {
-    row[0] = tr.t[i];
-    row[1] = tr.com_x[i];
-    row[2] = tr.com_z[i];
-    row[3] = tr.head_x[i];
-    row[4] = tr.head_z[i];
-    row[5] = tr.tail_x[i];
-    row[6] = tr.tail_z[i];
-    row[7] = tr.tau_head[i];
-    row[8] = tr.eta_head[i];
-    for (std::size_t k = 0; k < P; ++k) {
-      row[9 + k] = tr.body_x[i][k];
-      row[9 + P + k] = tr.body_z[i][k];
-    }
-    csv.row(row);
+    csv.row({tr.t[i], tr.com_x[i], tr.com_z[i], tr.head_x[i], tr.head_z[i], tr.tail_x[i], tr.tail_z[i],
+             tr.tau_head[i], tr.eta_head[i]},
+            P ? std::span<const double>(tr.body_x[i]) : std::span<const double>(),
+            P ? std::span<const double>(tr.body_z[i]) : std::span<const double>());
   }
   csv.close();
   return file;

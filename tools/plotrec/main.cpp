@@ -6,6 +6,7 @@
 // latency) from the topic files and body.csv.
 #include <CLI/CLI.hpp>
 
+#include "pedalwave/toolkit/body_csv.hpp"
 #include "pedalwave/toolkit/cli.hpp"
 
 #include <cmath>
@@ -78,13 +79,10 @@ int main(int argc, char** argv) {
       const auto& stamp_o = os.column("stamp_ns");
       const auto& seq_o = os.column("seq");
       const auto& seq_j = js.column("seq");
-      std::vector<std::string> header{"t", "com_x", "com_z", "head_x", "head_z"};
-      for (const char* axis : {"x_", "z_"})
-        for (int p = 0; p < m.points(); ++p) header.push_back(axis + std::to_string(p));
-      tk::CsvWriter body(out + "/body.csv", header);
-      body.comment("measured α placed by the observer's predicted body pose (θ_N, p_x, p_z) of " + base);
-      std::vector<double> row(header.size());
       const auto P = static_cast<std::size_t>(m.points());
+      tk::BodyPointsCsv body(out + "/body.csv", {"t", "com_x", "com_z", "head_x", "head_z"}, P);
+      body.comment("measured α placed by the observer's predicted body pose (θ_N, p_x, p_z) of " + base);
+      std::vector<double> x(P), z(P);
       std::size_t k = 0;
       for (std::size_t i = 0; i < os.rows(); ++i) {
         while (k + 1 < js.rows() && seq_j[k + 1] <= seq_o[i]) ++k;  // joint sample of that cycle
@@ -97,17 +95,12 @@ int main(int argc, char** argv) {
         pm::update_kinematics(m, d, q, Eigen::VectorXd());
         const pm::Vec2 c = pm::center_of_mass(m, d, q);
         const pm::Vec2 h = pm::point_position(m, d, q, m.point_head());
-        row[0] = (stamp_o[i] - t0) * 1e-9;
-        row[1] = c.x();
-        row[2] = c.y();
-        row[3] = h.x();
-        row[4] = h.y();
         for (std::size_t p = 0; p < P; ++p) {
-          const pm::Vec2 x = pm::point_position(m, d, q, static_cast<int>(p));
-          row[5 + p] = x.x();
-          row[5 + P + p] = x.y();
+          const pm::Vec2 pt = pm::point_position(m, d, q, static_cast<int>(p));
+          x[p] = pt.x();
+          z[p] = pt.y();
         }
-        body.row(row);
+        body.row({(stamp_o[i] - t0) * 1e-9, c.x(), c.y(), h.x(), h.y()}, x, z);
       }
       body.close();
     } else {

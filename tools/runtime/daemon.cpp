@@ -35,6 +35,7 @@
 #include "pedalwave/runtime/consumer.hpp"
 #include "pedalwave/simloop/plant_checks.hpp"
 #include "pedalwave/toolkit/cli.hpp"
+#include "pedalwave/toolkit/body_csv.hpp"
 #include "pedalwave/toolkit/csv.hpp"
 #include "pedalwave/toolkit/figures.hpp"
 #include "pedalwave/toolkit/json.hpp"
@@ -140,29 +141,21 @@ void write_plant_data(const std::string& dir, drivers::SimDriver& sim, const con
   model::Data data(m);
   const drivers::SimRecording& r = sim.recording();
   const auto nq = static_cast<std::size_t>(r.nq);
-  std::vector<std::string> header{"t", "com_x", "com_z", "head_x", "head_z"};
-  for (const char* axis : {"x_", "z_"})
-    for (int k = 0; k < m.points(); ++k) header.push_back(axis + std::to_string(k));
-  tk::CsvWriter csv(dir + "/body.csv", header);
-  csv.comment("the simulated plant of " + cfg.name + ": COM, head tip and the 2N+1 body points (tail tip first) [m]");
-  std::vector<double> row(header.size());
   const auto P = static_cast<std::size_t>(m.points());
+  tk::BodyPointsCsv csv(dir + "/body.csv", {"t", "com_x", "com_z", "head_x", "head_z"}, P);
+  csv.comment("the simulated plant of " + cfg.name + ": COM, head tip and the 2N+1 body points (tail tip first) [m]");
+  std::vector<double> x(P), z(P);
   for (std::size_t i = 0; i < r.count; ++i) {
     const Eigen::Map<const Eigen::VectorXd> q(&r.q[i * nq], r.nq);
     model::update_kinematics(m, data, q, Eigen::VectorXd());
     const model::Vec2 c = model::center_of_mass(m, data, q);
     const model::Vec2 h = model::point_position(m, data, q, m.point_head());
-    row[0] = r.t[i];
-    row[1] = c.x();
-    row[2] = c.y();
-    row[3] = h.x();
-    row[4] = h.y();
     for (std::size_t k = 0; k < P; ++k) {
       const model::Vec2 p = model::point_position(m, data, q, static_cast<int>(k));
-      row[5 + k] = p.x();
-      row[5 + P + k] = p.y();
+      x[k] = p.x();
+      z[k] = p.y();
     }
-    csv.row(row);
+    csv.row({r.t[i], c.x(), c.y(), h.x(), h.y()}, x, z);
   }
   csv.close();
   const model::Scene& scene = sim.sim().plant().scene();

@@ -5,7 +5,7 @@
 #include <numbers>
 #include <sstream>
 
-#include "pedalwave/toolkit/csv.hpp"
+#include "pedalwave/toolkit/body_csv.hpp"
 #include "pedalwave/toolkit/figures.hpp"
 #include "pedalwave/toolkit/format.hpp"
 #include "pedalwave/toolkit/json.hpp"
@@ -39,25 +39,10 @@ tk::FigureOutcome write_plots(const RunConfig& c, const RunResult& r) {
   if (r.t.empty()) return {tk::FigureOutcome::Status::skipped, "figures skipped: no samples"};
   // body.csv: the body points of every sample (the shapes), with the COM and the head tip.
   {
-    const std::size_t P = r.body_x.front().size();
-    std::vector<std::string> header{"t", "com_x", "com_z", "head_x", "head_z"};
-    for (const char* axis : {"x_", "z_"})
-      for (std::size_t k = 0; k < P; ++k) header.push_back(axis + std::to_string(k));
-    tk::CsvWriter csv(c.out_dir / "body.csv", header);
+    tk::BodyPointsCsv csv(c.out_dir / "body.csv", {"t", "com_x", "com_z", "head_x", "head_z"}, r.body_x.front().size());
     csv.comment("pedalwave_sim, scene '" + r.scene.name + "': COM, head tip and the 2N+1 body points (tail tip first) [m]");
-    std::vector<double> row(header.size());
-    for (std::size_t i = 0; i < r.t.size(); ++i) {
-      row[0] = r.t[i];
-      row[1] = r.com_x[i];
-      row[2] = r.com_z[i];
-      row[3] = r.head_x[i];
-      row[4] = r.head_z[i];
-      for (std::size_t k = 0; k < P; ++k) {
-        row[5 + k] = r.body_x[i][k];
-        row[5 + P + k] = r.body_z[i][k];
-      }
-      csv.row(row);
-    }
+    for (std::size_t i = 0; i < r.t.size(); ++i)
+      csv.row({r.t[i], r.com_x[i], r.com_z[i], r.head_x[i], r.head_z[i]}, r.body_x[i], r.body_z[i]);
     csv.close();
   }
   // figures.json: what the figures say about the run.

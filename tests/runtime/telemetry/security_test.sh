@@ -17,36 +17,9 @@
 #   security_test.sh RUNTIME_EXE MONITOR_EXE CONFIG_DIR KEYSTORE_SH WORK_DIR
 set -u
 rt=$1 mon=$2 cfgdir=$(cd "$3" && pwd) keystore=$4 work=$5
-fail=0
-daemon_pid=
-cleanup() { [ -n "$daemon_pid" ] && kill -KILL "$daemon_pid" 2>/dev/null && wait "$daemon_pid" 2>/dev/null; }
-trap cleanup EXIT
-skip() { echo "*** SKIPPED: $* ***"; exit 77; }
-check() {  # check DESCRIPTION EXPECTED ACTUAL [LOG]
-  if [ "$2" = "$3" ]; then echo "ok    $1"; else
-    echo "FAIL  $1: expected $2, got $3"; [ -n "${4:-}" ] && sed 's/^/      | /' "$4"; fail=1; fi
-}
-contains() {  # contains DESCRIPTION FILE TEXT
-  if grep -qF -- "$3" "$2"; then echo "ok    $1"; else
-    echo "FAIL  $1: no \"$3\" in"; sed 's/^/      | /' "$2"; fail=1; fi
-}
-lacks() {  # lacks DESCRIPTION FILE TEXT
-  if ! grep -qF -- "$3" "$2"; then echo "ok    $1"; else
-    echo "FAIL  $1: unexpected \"$3\" in"; sed 's/^/      | /' "$2"; fail=1; fi
-}
-
-plugins=/usr/lib/x86_64-linux-gnu/libddsc0debian
-for p in auth ac crypto; do
-  [ -f "$plugins/libdds_security_$p.so" ] ||
-    skip "Cyclone DDS security plugin $plugins/libdds_security_$p.so missing (package libddsc0debian)"
-done
-command -v openssl >/dev/null || skip "no openssl (package openssl)"
-
-# A DDS domain of our own (the lease the gtest processes use: flock on the same files).
-for domain in $(seq 100 230); do
-  exec 9>"/tmp/pedalwave-dds-domain-$domain.lock"
-  flock -n 9 && break
-done
+. "$(dirname "$0")/secured_run.sh"   # check/contains/lacks/skip, the domain lease, config, monitor
+need_security
+lease_domain
 rm -rf "$work"
 mkdir -p "$work"
 ks=$work/keystore other=$work/other_keystore
@@ -80,20 +53,12 @@ for f in public/ca.cert.pem public/identity_ca.cert.pem public/permissions_ca.ce
   [ -r "$ks/$f" ] || { echo "FAIL  keystore layout: no $f"; fail=1; }
 done
 
-config() {  # config FILE [ENCLAVE]
-  sed "s|scene: \.\./|scene: $cfgdir/|" "$cfgdir/runtime/demo.yaml" >"$1"
-  printf '  domain_id: %s\n  localhost_only: true\nsecurity:\n  keystore: %s\n' "$domain" "$ks" >>"$1"
-  [ -n "${2:-}" ] && printf '  enclave: %s\n' "$2" >>"$1"
-  return 0
-}
+config() { secured_config "$1" "$ks" "${2:-}"; }  # config FILE [ENCLAVE]
 monitor() {  # monitor ENCLAVE|none|other ARGS...
   local who=$1; shift
   case "$who" in
-    none) env -u CYCLONEDDS_URI -u ROS_SECURITY_ENABLE "$mon" --robot demo --domain "$domain" --localhost-only "$@" ;;
-    other) env -u CYCLONEDDS_URI "$mon" --robot demo --domain "$domain" --localhost-only \
-             --security-keystore "$other" --security-enclave /pedalwave/mallory "$@" ;;
-    *) env -u CYCLONEDDS_URI "$mon" --robot demo --domain "$domain" --localhost-only \
-         --security-keystore "$ks" --security-enclave "$who" "$@" ;;
+    other) secured_monitor "$other" /pedalwave/mallory "$@" ;;
+    *) secured_monitor "$ks" "$who" "$@" ;;
   esac
 }
 
@@ -163,8 +128,7 @@ check "keystore.sh made a SIGN keystore (exit status)" 0 $? "$work/signed_keysto
 sed "s|^  keystore: $ks\$|  keystore: $signed|" "$work/demo.yaml" >"$work/signed.yaml"
 env -u CYCLONEDDS_URI "$rt" -c "$work/signed.yaml" --duration 60 >"$work/signed_daemon.log" 2>&1 &
 daemon_pid=$!
-env -u CYCLONEDDS_URI "$mon" --robot demo --domain "$domain" --localhost-only --security-keystore "$signed" \
-  --security-enclave /pedalwave/screen --once --duration 20 >"$work/signed_screen.log" 2>&1
+secured_monitor "$signed" /pedalwave/screen --once --duration 20 >"$work/signed_screen.log" 2>&1
 check "SIGN governance: monitor identity gets a complete snapshot (exit status)" 0 $? "$work/signed_screen.log"
 contains "... of the robot" "$work/signed_screen.log" "robot \"demo\"  driver sim"
 contains "... whose start line says the data are signed" "$work/signed_daemon.log" "keystore $signed, data protection SIGN"

@@ -35,23 +35,7 @@ set -u
 rt=$1 mon=$2 cfgdir=$(cd "$3" && pwd) keystore=$4 work=$(mkdir -p "$5" && cd "$5" && pwd)
 src=${PEDALWAVE_SROS2_SOURCE:-${6:-}}
 here=$(cd "$(dirname "$0")" && pwd)
-fail=0
-daemon_pid=
-cleanup() { [ -n "$daemon_pid" ] && kill -KILL "$daemon_pid" 2>/dev/null && wait "$daemon_pid" 2>/dev/null; }
-trap cleanup EXIT
-skip() { echo "*** SKIPPED: $* ***"; exit 77; }
-check() {  # check DESCRIPTION EXPECTED ACTUAL [LOG]
-  if [ "$2" = "$3" ]; then echo "ok    $1"; else
-    echo "FAIL  $1: expected $2, got $3"; [ -n "${4:-}" ] && sed 's/^/      | /' "$4"; fail=1; fi
-}
-contains() {  # contains DESCRIPTION FILE TEXT
-  if grep -qF -- "$3" "$2"; then echo "ok    $1"; else
-    echo "FAIL  $1: no \"$3\" in"; sed 's/^/      | /' "$2"; fail=1; fi
-}
-lacks() {  # lacks DESCRIPTION FILE TEXT
-  if ! grep -qF -- "$3" "$2"; then echo "ok    $1"; else
-    echo "FAIL  $1: unexpected \"$3\" in"; sed 's/^/      | /' "$2"; fail=1; fi
-}
+. "$here/../secured_run.sh"   # check/contains/lacks/skip, the domain lease, config, monitor
 
 # The peer: sros2's Python package from the given source, copied into the build folder.
 [ -n "$src" ] || skip "no sros2 source: set PEDALWAVE_SROS2_SOURCE to a checkout of ros2/sros2 (Debian 12 does not package sros2 and this project's registries do not carry it)"
@@ -60,18 +44,8 @@ elif [ -f "$src/sros2/__init__.py" ]; then pkg=$src
 else skip "PEDALWAVE_SROS2_SOURCE=$src: no sros2/sros2/__init__.py there (expected a checkout of ros2/sros2)"; fi
 /usr/bin/python3 -c 'import cryptography, lxml.etree' 2>/dev/null ||
   skip "sros2 needs /usr/bin/python3 with cryptography and lxml (packages python3-cryptography python3-lxml)"
-plugins=/usr/lib/x86_64-linux-gnu/libddsc0debian
-for p in auth ac crypto; do
-  [ -f "$plugins/libdds_security_$p.so" ] ||
-    skip "Cyclone DDS security plugin $plugins/libdds_security_$p.so missing (package libddsc0debian)"
-done
-command -v openssl >/dev/null || skip "no openssl (package openssl)"
-
-# A DDS domain of our own (the lease the other DDS tests use: flock on the same files).
-for domain in $(seq 100 230); do
-  exec 9>"/tmp/pedalwave-dds-domain-$domain.lock"
-  flock -n 9 && break
-done
+need_security
+lease_domain
 rm -rf "$work"
 mkdir -p "$work/peer"
 cp -R "$pkg/sros2" "$pkg/xml_cache" "$work/peer/" || { echo "FAIL  copying sros2 from $pkg"; exit 1; }
@@ -109,19 +83,8 @@ check "sros2's governance.xsd rejects a governance without enable_join_access_co
 sros2 compare "$S" "$O" "${enclaves[@]}" >"$work/compare.log" 2>&1
 check "policy.xml through sros2 grants exactly what keystore.sh grants, every role" 0 $? "$work/compare.log"
 
-config() {  # config FILE KEYSTORE
-  sed "s|scene: \.\./|scene: $cfgdir/|" "$cfgdir/runtime/demo.yaml" >"$1"
-  printf '  domain_id: %s\n  localhost_only: true\nsecurity:\n  keystore: %s\n' "$domain" "$2" >>"$1"
-}
-monitor() {  # monitor KEYSTORE ENCLAVE|none ARGS...
-  local ks=$1 who=$2; shift 2
-  if [ "$who" = none ]; then
-    env -u CYCLONEDDS_URI -u ROS_SECURITY_ENABLE "$mon" --robot demo --domain "$domain" --localhost-only "$@"
-  else
-    env -u CYCLONEDDS_URI "$mon" --robot demo --domain "$domain" --localhost-only \
-      --security-keystore "$ks" --security-enclave "$who" "$@"
-  fi
-}
+config() { secured_config "$@"; }     # config FILE KEYSTORE
+monitor() { secured_monitor "$@"; }   # monitor KEYSTORE ENCLAVE|none ARGS...
 
 # 3. pedalwave on sros2's keystore. sros2's governance and permissions are for ROS_DOMAIN_ID
 # only: on another domain the daemon refuses to start, naming the file.

@@ -7,7 +7,6 @@
 #include <fstream>
 #include <iostream>
 #include <functional>
-#include <iomanip>
 #include <limits>
 #include <map>
 #include <sstream>
@@ -142,6 +141,22 @@ RunSpec make_spec(const Settings& s, model::Scene scene, double duration, double
 // installed ones beside the figure scripts, <figures>/paper_report (runtime/deploy/CMakeLists.txt).
 fs::path report_template(const std::string& name) {
   return tk::pick_figures_dir(fs::path(PEDALWAVE_PAPER_SOURCE_DIR) / "report", tk::figures_dir() / "paper_report") / name;
+}
+
+// The console summary's prose: a template of report/console/*.txt.in filled with the tool's values
+// (the report's mechanism, toolkit/report_template.hpp) and printed.
+void say(const Settings& s, const std::string& name, const std::map<std::string, std::string>& values) {
+  log(s) << tk::fill_template(report_template("console/" + name), values);
+}
+// A number as an ostream prints it by default (the console's durations and positions).
+std::string plain(double v) {
+  std::ostringstream o;
+  o << v;
+  return o.str();
+}
+void say_stopped(const Settings& s, const RunResult& r) {
+  if (r.status != model::StepStatus::kOk)
+    say(s, "run_stopped.txt.in", {{"t_end", plain(r.t_end)}, {"status", std::string(model::to_string(r.status))}});
 }
 
 // One Markdown table row ("| a | b |", '|' in a cell escaped) for a template's {{rows}}.
@@ -279,8 +294,7 @@ model::IntegratorOptions integ_of(const Settings& s, const model::Scene& scene) 
 // ================================================================================================
 FlatResult flat(const Settings& s, double duration) {
   const model::Scene hi = load(s, "flat_high_friction");
-  log(s) << "== flat ground: average forward speed at μ = 0.82 and μ = 0.40 (" << duration
-         << " s, " << describe_integ(s, hi) << ")\n";
+  say(s, "flat_start.txt.in", {{"duration", plain(duration)}, {"integrator", describe_integ(s, hi)}});
   std::vector<RunSpec> specs{make_spec(s, hi, duration, 0.0, 0.05),
                              make_spec(s, load(s, "flat_low_friction"), duration, 0.0, 0.05)};
   const auto res = run_all(s, specs, "flat");
@@ -291,15 +305,13 @@ FlatResult flat(const Settings& s, double duration) {
   f.v_low = res[1].avg_speed;
   f.ratio = f.v_high / f.v_low;
   f.gain = f.ratio - 1.0;
-  for (const auto& r : res)
-    if (r.status != model::StepStatus::kOk)
-      log(s) << "  WARNING: run stopped at t = " << r.t_end << " s (" << model::to_string(r.status) << ")\n";
-  log(s) << "  speed μ = 0.82: " << cms(f.v_high) << "   (paper: experiment 2.40 cm/s, simulation 2.18 cm/s)\n"
-         << "  speed μ = 0.40: " << cms(f.v_low) << '\n'
-         << "  ratio " << fmt(f.ratio, 4) << ", gain " << pct(f.gain)
-         << "   (paper: experiment +20.3 %, simulation +13.7 %)\n"
-         << "  average over t = " << fmt(f.avg_from) << " … " << fmt(duration)
-         << " s (the first gait period excluded), COM x\n";
+  for (const auto& r : res) say_stopped(s, r);
+  say(s, "flat.txt.in", {{"v_high", cms(f.v_high)},
+                         {"v_low", cms(f.v_low)},
+                         {"ratio", fmt(f.ratio, 4)},
+                         {"gain", pct(f.gain)},
+                         {"avg_from", fmt(f.avg_from)},
+                         {"duration", fmt(duration)}});
 
   if (s.plots) {
     tk::Json runs = tk::Json::array();
@@ -326,13 +338,14 @@ FrictionResult friction(const Settings& s, double duration) {
   FrictionResult f;
   f.duration = duration > 0 ? duration : sc.duration;
   f.cross_x = patch_x(sc);
-  log(s) << "== friction change: μ 0.82 → " << sc.ground.patches.front().mu << " from x = " << f.cross_x
-         << " m, head-joint SEA torque (" << f.duration << " s, " << describe_integ(s, sc) << ")\n";
+  say(s, "friction_start.txt.in", {{"mu_after", plain(sc.ground.patches.front().mu)},
+                                   {"cross_x", plain(f.cross_x)},
+                                   {"duration", plain(f.duration)},
+                                   {"integrator", describe_integ(s, sc)}});
   RunSpec spec = make_spec(s, sc, f.duration, 0.0, 0.005);
   spec.cross_x = f.cross_x;
   const RunResult r = run_all(s, {spec}, "friction").front();
-  if (r.status != model::StepStatus::kOk)
-    log(s) << "  WARNING: run stopped at t = " << r.t_end << " s (" << model::to_string(r.status) << ")\n";
+  say_stopped(s, r);
   const double period = gait_period(sc);
   f.t_cross = r.t_head_cross;
   const PeakSplit p = split_peaks(r, period, f.t_cross);
@@ -343,11 +356,14 @@ FrictionResult friction(const Settings& s, double duration) {
   f.mean_before = p.mean_before;
   f.mean_after = p.mean_after;
   f.change = p.change;
-  log(s) << "  head tip reaches x = " << f.cross_x << " m at t = " << secs(f.t_cross) << '\n'
-         << "  negative peaks (one per gait period " << fmt(period) << " s, first period excluded): "
-         << p.before.size() << " before, " << p.after.size() << " after\n"
-         << "  mean |peak| before " << fmt(f.mean_before, 4) << " N·m, after " << fmt(f.mean_after, 4)
-         << " N·m: change " << pct(f.change) << "   (paper: experiment +4.3 %, simulation +16.3 %)\n";
+  say(s, "friction.txt.in", {{"cross_x", plain(f.cross_x)},
+                             {"t_cross", secs(f.t_cross)},
+                             {"period", fmt(period)},
+                             {"peaks_before", std::to_string(p.before.size())},
+                             {"peaks_after", std::to_string(p.after.size())},
+                             {"mean_before", fmt(f.mean_before, 4)},
+                             {"mean_after", fmt(f.mean_after, 4)},
+                             {"change", pct(f.change)}});
 
   if (s.plots) {
     tk::Json fig = tk::Json::object();
@@ -405,10 +421,13 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
   if (k_c.empty()) throw std::invalid_argument("--k_c: expected at least one value");
   for (double h : heights)
     if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("--heights " + fmt(h) + ": expected > 0 [m]");
-  log(s) << "== stair: k_c ";
-  for (double k : k_c) log(s) << fmt(k) << ' ';
   const model::Scene sc = load(s, s.stair_scene);
-  log(s) << "on " << s.scene_prefix << s.stair_scene << " (" << duration << " s, " << describe_integ(s, sc) << ")\n";
+  std::string k_c_list;
+  for (double k : k_c) k_c_list += fmt(k) + ' ';
+  say(s, "stair_start.txt.in", {{"k_c", k_c_list},
+                                {"scene", s.scene_prefix + s.stair_scene},
+                                {"duration", plain(duration)},
+                                {"integrator", describe_integ(s, sc)}});
   std::vector<RunSpec> specs;
   for (double k : k_c) specs.push_back(make_spec(s, sc, duration, k, 0.05));
   for (double h : heights)
@@ -431,15 +450,20 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
     out.heights.push_back(std::move(row));
   }
   const StairEvents& e0 = out.cases.front().run.stair;
-  log(s) << "  box x = " << fmt(e0.x_near) << " … " << fmt(e0.x_far) << " m, top z = " << fmt(e0.top) << " m\n";
+  say(s, "stair_box.txt.in", {{"x_near", fmt(e0.x_near)}, {"x_far", fmt(e0.x_far)}, {"top", fmt(e0.top)}});
   std::string rows;  // the report's table (report/stair.md.in)
   for (const StairCase& c : out.cases) {
     const RunResult& r = c.run;
-    log(s) << "  k_c = " << std::setw(5) << fmt(c.k_c) << ": speed " << cms(r.avg_speed) << ", head on top "
-           << secs(r.stair.t_head_on_top) << ", COM past " << secs(r.stair.t_com_past) << ", whole body past "
-           << secs(r.stair.t_body_past) << ", max head z " << fmt(r.stair.max_head_z * 100, 3) << " cm"
-           << (r.status == model::StepStatus::kOk ? "" : std::string(", STOPPED: ") + std::string(model::to_string(r.status)))
-           << '\n';
+    const std::string k = fmt(c.k_c);
+    say(s, "stair_case.txt.in",
+        {{"k_c", std::string(k.size() < 5 ? 5 - k.size() : 0, ' ') + k},  // right-aligned in 5
+         {"speed", cms(r.avg_speed)},
+         {"head_on_top", secs(r.stair.t_head_on_top)},
+         {"com_past", secs(r.stair.t_com_past)},
+         {"body_past", secs(r.stair.t_body_past)},
+         {"max_head_z", fmt(r.stair.max_head_z * 100, 3)},
+         {"stopped", r.status == model::StepStatus::kOk ? std::string()
+                                                         : ", STOPPED: " + std::string(model::to_string(r.status))}});
     rows += (rows.empty() ? "" : "\n") +
             markdown_row({fmt(c.k_c), cms(r.avg_speed), secs(r.stair.t_head_on_top), secs(r.stair.t_com_past),
                           secs(r.stair.t_body_past), fmt(r.stair.max_head_z * 100, 3) + " cm",
@@ -447,8 +471,7 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
   }
   if (out.cases.size() >= 2) {
     const double g = out.cases[1].run.avg_speed / out.cases[0].run.avg_speed - 1.0;
-    log(s) << "  speed k_c = " << fmt(out.cases[1].k_c) << " over k_c = " << fmt(out.cases[0].k_c) << ": "
-           << pct(g) << "   (paper: +24.8 % at k_c = 10.1, ≈ 2.13 cm/s; experiment climbs at 1.3 cm/s)\n";
+    say(s, "stair_gain.txt.in", {{"k_c", fmt(out.cases[1].k_c)}, {"k_c0", fmt(out.cases[0].k_c)}, {"gain", pct(g)}});
   }
   std::vector<std::string> hh{"box height"};
   for (double k : k_c) hh.push_back("k_c = " + fmt(k) + ": speed, whole body past");
@@ -460,7 +483,11 @@ StairResult stair(const Settings& s, double duration, std::vector<double> k_c, d
     height_rows += (height_rows.empty() ? "" : "\n") + markdown_row(cells);
     ht.add_row(cells);
   }
-  if (!out.heights.empty()) log(s) << "  box-height scan (same scene, lower boxes):\n" << ht.to_text();
+  if (!out.heights.empty()) {
+    std::string table = ht.to_text();
+    if (!table.empty() && table.back() == '\n') table.pop_back();  // the template ends the line
+    say(s, "stair_heights.txt.in", {{"table", table}});
+  }
   if (s.plots) {
     std::vector<std::string> names;
     tk::Json cases = tk::Json::array();

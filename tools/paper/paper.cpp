@@ -232,7 +232,7 @@ void draw(const Settings& s, const std::vector<std::string>& names) {
   args.insert(args.end(), names.begin(), names.end());
   const tk::FigureOutcome r = tk::draw_figures("paper.py", args);
   if (r.status == tk::FigureOutcome::Status::drawn)
-    log(s) << "  figures: " << r.message << '\n';
+    say(s, "figures.txt.in", {{"message", r.message}});
   else  // loudly, also with --quiet: the data are written, the figures are not
     std::cerr << "pedalwave_paper: " << r.message << '\n';
 }
@@ -561,13 +561,17 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
   const auto grid = sweep_grid(o.from, o.to, o.step);
   const model::Scene sc = load(s, s.stair_scene);
   const std::string sc_text = read_file(scene_file(s, s.stair_scene));
-  log(s) << "== k_c sweep over " << s.scene_prefix << s.stair_scene << ": " << grid.size() << " runs, k_c = " << fmt(o.from) << " … "
-         << fmt(o.to) << " step " << fmt(o.step) << ", " << o.duration << " s each, " << describe_integ(s, sc)
-         << ", "
-         << (s.campaign.backend == campaign::Backend::slurm
-                 ? "Slurm job arrays of " + std::to_string(s.campaign.slurm.chunk) + " runs per task"
-                 : std::to_string(s.jobs) + " threads")
-         << '\n';
+  say(s, "sweep_start.txt.in",
+      {{"scene", s.scene_prefix + s.stair_scene},
+       {"runs", std::to_string(grid.size())},
+       {"from", fmt(o.from)},
+       {"to", fmt(o.to)},
+       {"step", fmt(o.step)},
+       {"duration", plain(o.duration)},
+       {"integrator", describe_integ(s, sc)},
+       {"where", s.campaign.backend == campaign::Backend::slurm
+                     ? "Slurm job arrays of " + std::to_string(s.campaign.slurm.chunk) + " runs per task"
+                     : std::to_string(s.jobs) + " threads"}});
   std::vector<RunSpec> specs;
   for (double k : grid) specs.push_back(make_spec(s, sc, o.duration, k, 0.0));
   const auto res = run_campaign(s, specs, sweep_campaign(s, "sweep"), s.stair_scene, sc_text, &out.wall_s);
@@ -590,16 +594,19 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
     failed += p.status != model::StepStatus::kOk;
     past += !std::isnan(p.stair.t_body_past);
   }
-  log(s) << "  wall " << fmt(out.wall_s, 4) << " s, CPU " << fmt(out.cpu_s, 4) << " s ("
-         << fmt(out.cpu_s / std::max(out.wall_s, 1e-9), 3) << " cores busy), real-time factor "
-         << fmt(out.realtime_factor, 4) << " (simulated s per wall s, all runs)"
-         << (failed ? ", " + std::to_string(failed) + " runs STOPPED" : "") << '\n';
+  say(s, "sweep_cost.txt.in", {{"wall_s", fmt(out.wall_s, 4)},
+                               {"cpu_s", fmt(out.cpu_s, 4)},
+                               {"cores", fmt(out.cpu_s / std::max(out.wall_s, 1e-9), 3)},
+                               {"realtime_factor", fmt(out.realtime_factor, 4)},
+                               {"stopped", failed ? ", " + std::to_string(failed) + " runs STOPPED" : ""}});
   if (have_best)
-    log(s) << "  best k_c = " << fmt(out.points[out.best].k_c) << ": " << cms(out.points[out.best].speed)
-           << ", k_c = 0: " << cms(out.v0) << ", gain " << pct(out.gain)
-           << "   (paper: best 10.1, +24.8 %)\n";
-  log(s) << "  whole body past the box within " << fmt(o.duration) << " s: " << past << " of "
-         << out.points.size() << " k_c values\n";
+    say(s, "sweep_best.txt.in", {{"k_c", fmt(out.points[out.best].k_c)},
+                                 {"speed", cms(out.points[out.best].speed)},
+                                 {"v0", cms(out.v0)},
+                                 {"gain", pct(out.gain)}});
+  say(s, "sweep_past.txt.in", {{"duration", fmt(o.duration)},
+                               {"past", std::to_string(past)},
+                               {"points", std::to_string(out.points.size())}});
 
   // Accuracy: a few k_c values again at a finer step.
   if (o.checks > 0 && have_best) {
@@ -622,9 +629,12 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
         if (p.k_c == uniq[i]) c.speed = p.speed;
       if (std::isnan(c.speed) && uniq[i] == 0.0) c.speed = out.v0;
       out.checks.push_back(c);
-      log(s) << "  check k_c = " << fmt(c.k_c) << ": h = " << fmt(integ_of(s, sc).h) << " → " << cms(c.speed)
-             << ", h = " << fmt(o.check_h) << " → " << cms(c.speed_fine) << " (Δ = "
-             << fixed((c.speed - c.speed_fine) * 100, 3) << " cm/s)\n";
+      say(s, "sweep_check.txt.in", {{"k_c", fmt(c.k_c)},
+                                    {"h", fmt(integ_of(s, sc).h)},
+                                    {"speed", cms(c.speed)},
+                                    {"h_fine", fmt(o.check_h)},
+                                    {"speed_fine", cms(c.speed_fine)},
+                                    {"delta", fixed((c.speed - c.speed_fine) * 100, 3)}});
     }
   }
 
@@ -726,8 +736,10 @@ SensitivityResult sensitivity(const Settings& s, const SensitivityOptions& o) {
     vars.push_back({"friction at", "link COMs only (paper)", [](model::Scene& sc) { sc.ground.friction_at_com = true; }});
     vars.push_back({"v_s [m/s]", "1e-4", [](model::Scene& sc) { sc.ground.v_s = 1e-4; }});
   }
-  log(s) << "== sensitivity: " << vars.size() << " variants × 5 runs (flat 0.82, flat 0.40, friction, stair k_c = 0, "
-         << fmt(o.k_c) << "), flat and friction: " << describe_integ(s, hi) << ", stair: " << describe_integ(s, st) << '\n';
+  say(s, "sensitivity_start.txt.in", {{"variants", std::to_string(vars.size())},
+                                      {"k_c", fmt(o.k_c)},
+                                      {"integrator", describe_integ(s, hi)},
+                                      {"stair_integrator", describe_integ(s, st)}});
   constexpr int kRuns = 5;
   std::vector<RunSpec> specs;
   const double fr_dur = o.friction_duration > 0 ? o.friction_duration : fr.duration;
@@ -1069,7 +1081,7 @@ AllResult all(const Settings& s, const AllOptions& o) {
       fr.sweep = sweep(f, o.sweep);
       r.fitted = std::move(fr);
     } else {
-      log(s) << "== no " << o.fitted_prefix << "* scenes in " << s.scenes_dir.string() << ": no fitted table\n";
+      say(s, "all_no_fitted.txt.in", {{"prefix", o.fitted_prefix}, {"scenes", s.scenes_dir.string()}});
     }
   }
   r.table = paper_table(r, &r.table_rows, &r.fitted_rows);
@@ -1082,7 +1094,7 @@ AllResult all(const Settings& s, const AllOptions& o) {
     all_md << '\n' << r.fitted->flat.markdown << '\n' << r.fitted->friction.markdown << '\n'
            << r.fitted->stair.markdown << '\n' << r.fitted->sweep.markdown;
   write_text(s.out_dir / "paper.md", all_md.str());
-  log(s) << "== wrote " << (s.out_dir / "paper_table.md").string() << " and " << (s.out_dir / "paper.md").string() << '\n';
+  say(s, "all_wrote.txt.in", {{"table", (s.out_dir / "paper_table.md").string()}, {"paper", (s.out_dir / "paper.md").string()}});
   return r;
 }
 

@@ -1,6 +1,7 @@
 #include "pedalwave/drivers/canopen_driver.hpp"
 
 #include <linux/can/error.h>
+#include <linux/can/raw.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -84,6 +85,7 @@ std::unique_ptr<CanOpenDriver> CanOpenDriver::open(const SocketCanConfig& cfg) {
       {0x700, 0x780 | CAN_EFF_FLAG | CAN_RTR_FLAG},  // 700h–77Fh
   };
   opt.filters = filters;
+  opt.own_frames = true;  // the SYNC's echo: when it was on the bus (read())
   return std::make_unique<CanOpenDriver>(open_can_socket(opt), cfg);
 }
 
@@ -94,6 +96,9 @@ CanOpenDriver::CanOpenDriver(int fd, const SocketCanConfig& cfg) : fd_(fd), join
     if (!detail::set_nonblocking(fd)) throw std::system_error(errno, std::generic_category(), "CanOpenDriver: O_NONBLOCK");
     const int one = 1;
     (void)::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one);
+    int own = 0;
+    socklen_t own_len = sizeof own;
+    echo_ = ::getsockopt(fd, SOL_CAN_RAW, CAN_RAW_RECV_OWN_MSGS, &own, &own_len) == 0 && own != 0;
     sync_wire_ns_ = std::llround(can_classic_frame_bits(0) / cfg.bitrate * 1e9);
     for (int n = 0; n <= 8; ++n)
       frame_wire_ns_[static_cast<std::size_t>(n)] = std::llround(can_classic_frame_bits(n) / cfg.bitrate * 1e9);
@@ -116,6 +121,10 @@ CanOpenDriver::CanOpenDriver(int fd, const SocketCanConfig& cfg) : fd_(fd), join
       throw std::invalid_argument("CANopen: sync_window " + std::to_string(cfg.canopen.sync_window) +
                                   "; expected a share of the SYNC period in [0, 1) (0: no synchronous window)");
     hb_timeout_ns_ = std::llround(cfg.canopen.heartbeat_timeout_s * 1e9);
+    // As the drives get them (1006h, 1007h in µs).
+    const auto period_us = std::llround(cfg.period_s * 1e6);
+    period_ns_ = period_us * 1000;
+    window_ns_ = std::llround(static_cast<double>(period_us) * cfg.canopen.sync_window) * 1000;
     bring_up();
   } catch (...) {
     if (fd >= 0) ::close(fd);
@@ -417,7 +426,20 @@ void CanOpenDriver::drain(std::int64_t rt_minus_mono_ns, bool before_sync) noexc
       peer_closed_ = true;
       return;
     }
+    if (r.have_rxq_ovfl && r.rxq_ovfl != rxq_ovfl_) {  // frames the kernel dropped: the receive queue was full
+      counters_.rx_dropped += static_cast<std::uint32_t>(r.rxq_ovfl - rxq_ovfl_);
+      rxq_ovfl_ = r.rxq_ovfl;
+    }
     const std::int64_t stamp = r.stamp_ns != 0 ? r.stamp_ns : detail::monotonic_ns();
+    // This master is the bus's only SYNC producer (CiA 301): a SYNC received is its own, looped
+    // back when it was sent. Its other frames (RPDOs, SDO requests) looped back are not news.
+    const canid_t raw = r.frame.can_id;
+    if (r.bytes == CAN_MTU && !r.truncated && (raw & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) == 0 &&
+        (raw & CAN_SFF_MASK) == co::kCobSync) {
+      if (echo_) on_sync_echo(stamp);
+      continue;
+    }
+    if (r.own) continue;
     silence_.on_rx(stamp, counters_);
     if (stamp > wire_busy_ns_) wire_busy_ns_ = stamp;  // the bus was busy up to this frame's end
     ++counters_.frames_rx;
@@ -522,8 +544,9 @@ void CanOpenDriver::handle(const can_frame& f, std::int64_t stamp, bool before_s
     ++counters_.malformed;
     return;
   }
-  if (before_sync || stamp < t_sync_ns_) {
-    // Queued before this read's SYNC went out: within the drive's synchronous window of the
+  if (before_sync || echo_pending_ || stamp < t_sync_ns_) {
+    // Queued before this read's SYNC went out (with the SYNC's echo: received before the echo,
+    // the receive queue keeps the bus's order): within the drive's synchronous window of the
     // previous SYNC (1007h), so its answer, late. Kept as that SYNC's sample (read()).
     ++counters_.late;
     status_[ju] |= kStatusLate;
@@ -556,6 +579,21 @@ void CanOpenDriver::handle(const can_frame& f, std::int64_t stamp, bool before_s
   torque_[ju] = v.torque;
 }
 
+void CanOpenDriver::on_sync_echo(std::int64_t stamp) noexcept {
+  if (!echo_pending_) return;  // safe_stop()'s, or one whose SYNC was given up on
+  echo_pending_ = false;
+  const std::int64_t t = (wire_before_sync_ns_ > stamp ? wire_before_sync_ns_ : stamp) + sync_wire_ns_;
+  const std::int64_t delay = stamp - t_sync_ns_;
+  if (delay > sync_delay_max_ns_) sync_delay_max_ns_ = delay;
+  if (delay > 1'000'000) ++syncs_delayed_;
+  // The SYNC record's time: this read's (in its polls), or the previous read's when its echo came
+  // only in this read's first drain (then prev_sync_ is that record).
+  if (prev_sync_.cycle == last_sync_.cycle) prev_sync_.lower_ns = t;
+  last_sync_.lower_ns = t;
+  sync_lower_ns_ = t;
+  t_sync_ns_ = stamp;
+}
+
 void CanOpenDriver::decode_tpdo(bool t1, const can_frame& f, std::size_t j, DriveValues& v) const noexcept {
   if (t1) {  // 6041h statusword, 6064h position actual, 6077h torque actual
     v.statusword = u16(f.data);
@@ -579,6 +617,48 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   prev_sync_ = last_sync_;  // the SYNC whose late answers this read's first drain gathers
   const std::int64_t rt_off = detail::clock_ns(CLOCK_REALTIME) - detail::monotonic_ns();
   drain(rt_off, true);
+  // No SYNC while the previous one's synchronous window is open: a drive may still answer it, and
+  // an answer sent after a newer SYNC would be taken for that one's (a PDO names no SYNC). After
+  // an overrun the loop's next cycle comes early — 2 ms after the late SYNC in a 10 ms period —
+  // and the vcan VM's drives, answering 3 ms after a SYNC, answered the old one after the new:
+  // samples a SYNC off, which the observer read as a torque it could not explain. A window that
+  // closes before this read's deadline is waited out (the loop's wake-up jitter, a previous SYNC
+  // sent late); otherwise this cycle sends no SYNC and gathers the previous one's answers, used
+  // as late samples.
+  bool hold = false;
+  if (window_ns_ > 0 && last_sync_.cycle != 0) {
+    const std::int64_t closes = last_sync_.lower_ns + window_ns_;
+    const std::int64_t now = detail::monotonic_ns();
+    if (now < closes) {
+      if (closes < deadline_ns) {
+        const timespec until = detail::to_timespec(closes);
+        while (::clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &until, nullptr) == EINTR) {
+        }
+        drain(rt_off, true);
+      } else {
+        hold = true;
+        ++syncs_held_;
+      }
+    }
+  }
+  if (hold) {
+    // Everything this read receives answers the previous SYNC (or an older one).
+    auto late_complete = [&]() noexcept {
+      for (int j = 0; j < joints_; ++j)
+        if (!late1_[static_cast<std::size_t>(j)] || !late2_[static_cast<std::size_t>(j)]) return false;
+      return true;
+    };
+    while (!late_complete() && !peer_closed_) {
+      const std::int64_t remaining = deadline_ns - detail::monotonic_ns();
+      if (remaining <= 0) break;
+      pollfd p{fd_, POLLIN, 0};
+      const timespec ts = detail::to_timespec(remaining);
+      const int r = ::ppoll(&p, 1, &ts, nullptr);
+      if (r < 0 && errno != EINTR) break;
+      if (r > 0) drain(rt_off, true);
+    }
+    return finish_read(out, Tx::kOk);
+  }
   // The RPDOs written last cycle act from this SYNC on; the sample this SYNC takes is the end of
   // the interval over which the previous SYNC's command acted (reported: applied then).
   prev_acting_seq_ = acting_seq_;
@@ -591,9 +671,16 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   // wire before it (last cycle's RPDOs of a late write, answers still coming), then its own bits.
   const std::int64_t t_sync = detail::monotonic_ns();
   sync_lower_ns_ = (wire_busy_ns_ > t_sync ? wire_busy_ns_ : t_sync) + sync_wire_ns_;
+  wire_before_sync_ns_ = wire_busy_ns_;
   t_sync_ns_ = t_sync;
   last_sync_ = SyncRecord{cycle_, sync_lower_ns_, prev_acting_seq_, prev_sync_ns_};
+  if (echo_pending_) ++echo_lost_;  // the previous SYNC's echo never came
+  const std::uint64_t rx_dropped_before = counters_.rx_dropped;
   const Tx tx = send(sync);
+  // With the echo, the sample time is when the SYNC was on the bus, not when this thread asked
+  // for it: on a loaded machine the send itself took up to 20 ms (the vcan VM beside a compiler),
+  // and the drives sampled that much later than the lower bound above.
+  echo_pending_ = echo_ && tx == Tx::kOk;
   auto complete = [&]() noexcept {
     for (int j = 0; j < joints_; ++j)
       if (!got1_[static_cast<std::size_t>(j)] || !got2_[static_cast<std::size_t>(j)]) return false;
@@ -608,6 +695,16 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
     if (r < 0 && errno != EINTR) break;
     if (r > 0) drain(rt_off, false);
   }
+  if (echo_pending_ && counters_.rx_dropped != rx_dropped_before) {
+    // The echo may be among the frames the full receive queue lost: which SYNC the answers
+    // received answer is then unknown; none is used.
+    late1_.fill(false);
+    late2_.fill(false);
+  }
+  return finish_read(out, tx);
+}
+
+IoStatus CanOpenDriver::finish_read(Feedback& out, Tx tx) noexcept {
   const std::int64_t now = detail::monotonic_ns();
   out.joints = joints_;
   out.seq = cycle_;

@@ -74,6 +74,8 @@ int open_can_socket(const CanSocketOptions& opt) {
       if (::setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof one) < 0)
         fail(errno, opt.ifname, "SO_RXQ_OVFL failed");
     }
+    if (opt.own_frames && ::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_RECV_OWN_MSGS, &one, sizeof one) < 0)
+      fail(errno, opt.ifname, "CAN_RAW_RECV_OWN_MSGS failed");
     sockaddr_can addr{};
     addr.can_family = AF_CAN;
     addr.can_ifindex = ifindex;

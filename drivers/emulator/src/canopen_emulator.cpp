@@ -363,6 +363,7 @@ CanOpenModuleEmulator::CanOpenModuleEmulator(int fd, const EmulatorConfig& cfg,
                                 ", expected an open socket");
   const int one = 1;
   (void)::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one);  // the frames' arrival times
+  (void)::setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof one);     // frames lost before they were read
   if (co.encoder_increments == 0 || co.deflection_increments == 0 || co.rated_torque_mnm == 0)
     throw std::invalid_argument("CANopen module emulator: encoder_increments, deflection_increments and "
                                 "rated_torque_mnm must be > 0");
@@ -454,7 +455,10 @@ void CanOpenModuleEmulator::flush(std::int64_t now) noexcept {
   blocked_ = false;
   while (head_ != tail_ && queue_[head_].due_ns <= now) {
     const Pending& p = queue_[head_];
-    if (p.pdo && p.window_end_ns != 0 && now > p.window_end_ns) {  // its window closed: discarded
+    // The window is checked against the clock at the send, not at the turn's start: a thread
+    // held in between (a loaded machine) must not send an answer after its window, perhaps
+    // after a newer SYNC, which the master would take for that one's.
+    if (p.pdo && p.window_end_ns != 0 && std::max(now, detail::monotonic_ns()) > p.window_end_ns) {  // discarded
       window_dropped.fetch_add(1, std::memory_order_relaxed);
       head_ = (head_ + 1) % queue_.size();
       continue;
@@ -496,6 +500,10 @@ void CanOpenModuleEmulator::run(const std::atomic<bool>& stop) {
     for (;;) {
       if (receive_frame(fd_, cbuf, rt_off, r) != Receive::kFrame) break;
       got = true;
+      if (r.have_rxq_ovfl && r.rxq_ovfl != rxq_ovfl_) {  // a real drive's controller loses none
+        bank_.stats().rx_lost.fetch_add(static_cast<std::uint32_t>(r.rxq_ovfl - rxq_ovfl_), std::memory_order_relaxed);
+        rxq_ovfl_ = r.rxq_ovfl;
+      }
       // A drive acts on a frame when it arrives, not when this thread gets to it: the kernel's
       // receive stamp (AF_UNIX: when the host sent it; CAN: when it came off the bus), so a
       // thread held by a loaded machine still samples the plant at the SYNC's time.

@@ -47,6 +47,7 @@ struct CanOpenWalk {
   test::WalkResult r;
   std::string fault_text;
   int fault_joint = -1;
+  std::uint64_t syncs_held = 0;  // reads that sent no SYNC: the previous window open
 };
 
 CanOpenWalk walk(const config::DaemonConfig& cfg, double duration, const drivers::FaultConfig& faults = {},
@@ -67,6 +68,7 @@ CanOpenWalk walk(const config::DaemonConfig& cfg, double duration, const drivers
   w.r = test::run_walk(cfg, robot, drv);
   w.fault_text = drv.fault_text();
   w.fault_joint = drv.fault_joint();
+  w.syncs_held = drv.syncs_held();
   return w;
 }
 
@@ -161,7 +163,8 @@ TEST(CanOpenWalk, CspWithLateAndLostAnswersNoFalseAlarm) {
   f.stall_every_syncs = 100;
   const CanOpenWalk w = walk(cfg, duration, f);
   print("CSP, late answers and a held drives' thread", w, sim.forward_speed);
-  std::printf("[vrobot] late answers used %llu of %llu late\n", static_cast<unsigned long long>(w.r.counters.late_used),
+  std::printf("[vrobot] SYNCs held %llu; late answers used %llu of %llu late\n",
+              static_cast<unsigned long long>(w.syncs_held), static_cast<unsigned long long>(w.r.counters.late_used),
               static_cast<unsigned long long>(w.r.counters.late));
   const auto cycles = static_cast<std::uint64_t>(kRate * duration);
   EXPECT_EQ(w.r.daemon.run.reason, runtime::ExitReason::kCycleLimit);
@@ -214,3 +217,4 @@ TEST(CanOpenWalk, AnEmcyMidWalkStopsTheRuntimeOnItsJointNamed) {
   EXPECT_EQ(w.fault_text, "CANopen node 2 (joint 2): EMCY 4210h, error register 09h: excess temperature (device)");
   EXPECT_TRUE(w.r.all_modules_off) << "the other drives got disable operation";
 }
+

@@ -120,7 +120,8 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
   const std::string file = std::string(::testing::TempDir()) + "canopen_candump.log";
   std::vector<std::string> lines;
   std::string driver_fault;
-  int driver_fault_joint = -1, void_runs = 0;
+  int driver_fault_joint = -1, void_runs = 0, attempts = 0;
+  std::string sync_note;
   auto attempt = [&] { return test::walk_unless_machine_stalled("canopen vcan walk", rate, void_runs, [&] {
     Candump dump(exe, file);
     EXPECT_TRUE(dump.running());
@@ -131,12 +132,23 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
     robot.start();
     std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the drives' power-on boot-ups
     std::unique_ptr<drivers::CanOpenDriver> drv = drivers::CanOpenDriver::open(cfg.driver.can);
-    test::WalkResult w = test::run_walk(cfg, robot, *drv, false, plots);
+    // One folder per attempt: a void run's data stay beside the verdict's.
+    const std::string attempt_plots = plots.empty() ? plots : plots + "/attempt-" + std::to_string(++attempts);
+    test::WalkResult w = test::run_walk(cfg, robot, *drv, false, attempt_plots);
     std::this_thread::sleep_for(std::chrono::milliseconds(500));  // candump writes the tail
     dump.stop();
     lines = dump.lines();
     driver_fault = drv->fault_text();
     driver_fault_joint = drv->fault_joint();
+    char echo[200];
+    std::snprintf(echo, sizeof echo,
+                  "SYNC echo %s: longest send %.2f ms, %llu SYNCs sent > 1 ms late, %llu echoes lost; %llu SYNCs held "
+                  "(the previous window open)",
+                  drv->sync_echo() ? "on" : "OFF", 1e-6 * static_cast<double>(drv->sync_delay_max_ns()),
+                  static_cast<unsigned long long>(drv->syncs_delayed()),
+                  static_cast<unsigned long long>(drv->sync_echoes_lost()),
+                  static_cast<unsigned long long>(drv->syncs_held()));
+    sync_note = echo;
     return w;
   }); };
   auto not_real_time = [](const test::WalkResult& w) { return w.daemon.run.overruns * 10 > w.daemon.run.cycles; };
@@ -146,6 +158,10 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
                 "(more than 10 %%): the machine did not run it in real time; the runtime's verdict was: %s ########\n",
                 a - 1, test::kAttempts, static_cast<unsigned long long>(r.daemon.run.overruns),
                 static_cast<unsigned long long>(r.daemon.run.cycles), r.daemon.exit_line.c_str());
+    std::printf("%s[canopen-vcan] void run: missing %llu, late %llu (used %llu), received frames the master's queue lost %llu; %s\n",
+                r.report.c_str(), static_cast<unsigned long long>(r.counters.missing),
+                static_cast<unsigned long long>(r.counters.late), static_cast<unsigned long long>(r.counters.late_used),
+                static_cast<unsigned long long>(r.counters.rx_dropped), sync_note.c_str());
     std::fflush(stdout);
     r = attempt();
   }
@@ -153,11 +169,11 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
   EXPECT_LT(test::stall_of(r, rate).worst(), test::kMachineStall)
       << "the machine held the link in every attempt (" << void_runs << " void runs)";
   std::printf("%s[canopen-vcan] %llu cycles, overruns %llu, speed %.3f cm/s (in-process %.3f cm/s), missing %llu, "
-              "late %llu (used %llu), driver fault '%s'\n",
+              "late %llu (used %llu), driver fault '%s'; %s\n",
               r.report.c_str(), static_cast<unsigned long long>(r.daemon.run.cycles),
               static_cast<unsigned long long>(r.daemon.run.overruns), 100 * r.speed, 100 * sim.forward_speed,
               static_cast<unsigned long long>(r.counters.missing), static_cast<unsigned long long>(r.counters.late),
-              static_cast<unsigned long long>(r.counters.late_used), driver_fault.c_str());
+              static_cast<unsigned long long>(r.counters.late_used), driver_fault.c_str(), sync_note.c_str());
   EXPECT_EQ(r.daemon.run.reason, runtime::ExitReason::kCycleLimit);
   EXPECT_EQ(r.daemon.run.fault, runtime::FaultClass::kNone) << runtime::to_string(r.daemon.run.fault);
   // The deployment path is clean: no fault, warning or hold (issue 14: before the synchronous

@@ -114,6 +114,10 @@ std::string VirtualRobot::report() {
   if (s.stamped_behind.load() > 0)
     o << "; " << s.stamped_behind.load() << " SYNC(s) or command(s) stamped before the plant's time (up to "
       << 1e-6 * static_cast<double>(s.stamped_behind_max_ns.load()) << " ms)";
+  if (canopen_)
+    o << "; CANopen: " << canopen_->window_dropped.load() << " TPDO(s) not sent, their SYNC's window (1007h) closed";
+  if (s.rx_lost.load() > 0)
+    o << "; " << s.rx_lost.load() << " frame(s) LOST before the modules' thread read them (its receive queue full)";
   o << "\n";
   o << "  faults injected: replies dropped " << s.replies_dropped.load() << ", corrupted "
     << s.replies_corrupted.load() << ", command lifetime expired " << s.lifetime_expired.load();

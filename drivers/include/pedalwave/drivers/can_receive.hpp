@@ -20,6 +20,7 @@ struct ReceivedFrame {
   std::size_t bytes = 0;          // what recvmsg returned: CAN_MTU or CANFD_MTU for a whole frame
   bool truncated = false;         // MSG_TRUNC: larger than canfd_frame
   std::int64_t stamp_ns = 0;      // SCM_TIMESTAMPNS on CLOCK_MONOTONIC [ns]; 0 = not stamped
+  bool own = false;               // MSG_CONFIRM: a frame this socket sent, looped back (CAN_RAW_RECV_OWN_MSGS)
   bool have_rxq_ovfl = false;     // SO_RXQ_OVFL present (the socket's drop counter) …
   std::uint32_t rxq_ovfl = 0;     // … its value [-]
 };
@@ -48,6 +49,7 @@ inline Receive receive_frame(int fd, std::span<char> control, std::int64_t rt_mi
     if (n == 0) return Receive::kClosed;
     out.bytes = static_cast<std::size_t>(n);
     out.truncated = (m.msg_flags & MSG_TRUNC) != 0;
+    out.own = (m.msg_flags & MSG_CONFIRM) != 0;
     for (cmsghdr* c = CMSG_FIRSTHDR(&m); c != nullptr; c = CMSG_NXTHDR(&m, c)) {
       if (c->cmsg_level != SOL_SOCKET) continue;
       if (c->cmsg_type == SCM_TIMESTAMPNS) {

@@ -88,6 +88,19 @@ class CanOpenDriver final : public Driver {
   std::uint64_t emcy_received() const { return emcy_count_; }
   const std::string& device_name(int j) const { return names_[static_cast<std::size_t>(j)]; }
   std::uint8_t node(int j) const { return node_[static_cast<std::size_t>(j)]; }
+  // The SYNC's echo (a SocketCAN socket with CAN_RAW_RECV_OWN_MSGS, which open() sets): the time
+  // the SYNC was on the bus, for the samples' time and for telling this SYNC's answers from the
+  // previous one's. On by itself for such a socket; a socket pair's peer that loops the SYNC back
+  // as the kernel does turns it on here (tests).
+  bool sync_echo() const noexcept { return echo_; }
+  void expect_sync_echo(bool on) noexcept { echo_ = on; }
+  // The longest time between asking for a SYNC and its echo [ns], SYNCs whose echo came more than
+  // 1 ms after, and echoes never received.
+  std::int64_t sync_delay_max_ns() const noexcept { return sync_delay_max_ns_; }
+  std::uint64_t syncs_delayed() const noexcept { return syncs_delayed_; }
+  std::uint64_t sync_echoes_lost() const noexcept { return echo_lost_; }
+  // Reads that sent no SYNC because the previous SYNC's synchronous window was still open (read()).
+  std::uint64_t syncs_held() const noexcept { return syncs_held_; }
 
  private:
   enum class Tx : std::uint8_t { kOk, kDropped, kDown };
@@ -106,6 +119,9 @@ class CanOpenDriver final : public Driver {
   // Cycle.
   void drain(std::int64_t rt_minus_mono_ns, bool before_sync) noexcept;
   void handle(const can_frame& f, std::int64_t stamp_ns, bool before_sync) noexcept;
+  void on_sync_echo(std::int64_t stamp_ns) noexcept;
+  // read()'s end: the feedback of what this read gathered, fresh or late.
+  IoStatus finish_read(Feedback& out, Tx tx) noexcept;
   void note_fault(int j, const char* fmt, unsigned a, unsigned b, const char* text) noexcept;
   void send_gains() noexcept;
 
@@ -117,7 +133,13 @@ class CanOpenDriver final : public Driver {
   std::uint64_t cycle_ = 0;
   std::int64_t deadline_ns_ = 0;
   std::int64_t sync_wire_ns_ = 0, sync_lower_ns_ = 0;
-  std::int64_t t_sync_ns_ = 0;  // when this read's SYNC was handed to the socket [ns]
+  std::int64_t t_sync_ns_ = 0;  // when this read's SYNC was handed to the socket (its echo's stamp) [ns]
+  std::int64_t wire_before_sync_ns_ = 0;  // the bus busy until then before the SYNC [ns]
+  bool echo_ = false;          // the SYNC comes back (sync_echo())
+  bool echo_pending_ = false;  // the last SYNC sent, its echo not yet received
+  std::int64_t sync_delay_max_ns_ = 0;
+  std::uint64_t syncs_delayed_ = 0, echo_lost_ = 0, syncs_held_ = 0;
+  std::int64_t period_ns_ = 0, window_ns_ = 0;  // the SYNC period, its synchronous window (1007h) [ns]
   std::array<std::int64_t, 9> frame_wire_ns_{};  // a classic frame of n bytes on the wire [ns]
   std::int64_t wire_busy_ns_ = 0;  // the bus is busy with frames sent / seen until then [ns]
   bool bus_error_cycle_ = false, peer_closed_ = false, bus_off_ = false;
@@ -173,6 +195,7 @@ class CanOpenDriver final : public Driver {
   double sdo_value_ = 0;
   std::int64_t sdo_started_ns_ = 0;
   int gains_cursor_ = 0;
+  std::uint32_t rxq_ovfl_ = 0;  // last SO_RXQ_OVFL value [-]
   alignas(cmsghdr) std::array<char, 128> cmsg_buf_{};
 };
 

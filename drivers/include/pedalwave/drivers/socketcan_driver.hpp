@@ -89,6 +89,8 @@ struct CanSocketOptions {
   bool error_frames = true;            // CAN_RAW_ERR_FILTER: bus-off, error-passive, controller,
                                        // protocol, tx timeout, restarted
   bool timestamps = true;              // SO_TIMESTAMPNS + SO_RXQ_OVFL
+  bool own_frames = false;             // CAN_RAW_RECV_OWN_MSGS: this socket's frames come back when
+                                       // they have been sent (received with MSG_CONFIRM)
 };
 
 // Opens, configures and binds a non-blocking raw CAN socket; returns its fd. Throws

@@ -177,6 +177,7 @@ class CanOpenModuleEmulator {
   std::array<Pending, 512> queue_{};
   std::size_t head_ = 0, tail_ = 0;
   bool blocked_ = false;
+  std::uint32_t rxq_ovfl_ = 0;  // last SO_RXQ_OVFL value [-]
   bool booted_ = false;
   std::array<std::atomic<std::uint8_t>, kMaxJoints> pub_nmt_{}, pub_drive_{};
   void publish() noexcept;  // node_[j].nmt / drive → pub_*

@@ -145,6 +145,7 @@ struct EmulatorStats {
   std::atomic<std::uint64_t> torque_off_cmds{0}; // of which torque-off [-]
   std::atomic<std::uint64_t> lifetime_expired{0};// module dropped to torque-off (timeout) [-]
   std::atomic<std::uint64_t> rx_errors{0};       // malformed / CRC-failed frames received [-]
+  std::atomic<std::uint64_t> rx_lost{0};         // frames the kernel dropped, the receive queue full (SO_RXQ_OVFL) [-]
   std::atomic<std::uint64_t> keep_ups{0};        // plant advances between overdue SYNCs [-]
   std::atomic<std::uint64_t> self_stalls{0};     // this thread held ≥ 20 ms by the machine [-]
   std::atomic<std::int64_t> self_stall_ns{0};    // their total [ns]

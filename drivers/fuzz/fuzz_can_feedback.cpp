@@ -24,7 +24,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     f.data[7] = pedalwave::drivers::crc8_j1850_final(reg);
   }
   int node = 0;
-  can::ModuleFeedback fb{};
+  can::FeedbackFrame fb{};
   if (can::decode_feedback(f, node, fb) != can::CodecStatus::kOk) return 0;
   PW_FUZZ_CHECK(node >= 1 && node <= can::kMaxNode);
   can_frame g{};

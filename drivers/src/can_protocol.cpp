@@ -84,29 +84,25 @@ CodecStatus decode_sync(const can_frame& in, std::uint8_t& counter) noexcept {
 }
 
 // ---- Feedback -----------------------------------------------------------------------------------
-CodecStatus encode_feedback(int node, const ModuleFeedback& fb, can_frame& out) noexcept {
+CodecStatus encode_feedback(int node, const FeedbackFrame& fb, can_frame& out) noexcept {
   clear(out);
   if (!node_ok(node)) return CodecStatus::kBadArgument;
   std::uint8_t flags = 0;
   out.can_id = kFeedbackBase + static_cast<canid_t>(node);
   out.len = 8;
-  put_i16(out.data + 0, wire::to_i16(fb.beta, wire::kBetaLsb, flags));
-  put_i16(out.data + 2, wire::to_i16(fb.beta_dot, wire::kBetaDotLsb, flags));
-  put_i16(out.data + 4, wire::to_i16(fb.deflection, wire::kDeflectionLsb, flags));
+  wire::put_sample_values(out.data, fb.sample, flags);
   out.data[6] = static_cast<std::uint8_t>((fb.counter & kClassicCounterMask) |
-                                          (wire::pack_module_status(fb.status) << 4));
+                                          (wire::pack_module_status(fb.sample.status) << 4));
   out.data[7] = crc8_frame(out.can_id, out.data, 7);
   return from_flags(flags);
 }
 
-CodecStatus decode_feedback(const can_frame& in, int& node, ModuleFeedback& fb) noexcept {
+CodecStatus decode_feedback(const can_frame& in, int& node, FeedbackFrame& fb) noexcept {
   const CodecStatus s = check_classic(in, kFeedbackBase, node);
   if (s != CodecStatus::kOk) return s;
-  fb.beta = wire::from_i16(get_i16(in.data + 0), wire::kBetaLsb);
-  fb.beta_dot = wire::from_i16(get_i16(in.data + 2), wire::kBetaDotLsb);
-  fb.deflection = wire::from_i16(get_i16(in.data + 4), wire::kDeflectionLsb);
+  wire::get_sample_values(in.data, fb.sample);
+  fb.sample.status = wire::unpack_module_status(static_cast<std::uint8_t>(in.data[6] >> 4));
   fb.counter = in.data[6] & kClassicCounterMask;
-  fb.status = wire::unpack_module_status(static_cast<std::uint8_t>(in.data[6] >> 4));
   return CodecStatus::kOk;
 }
 
@@ -137,7 +133,7 @@ CodecStatus decode_timing(const can_frame& in, int& node, wire::ModuleTiming& t,
 }
 
 // ---- Feedback on an FD bus ----------------------------------------------------------------------
-CodecStatus encode_feedback_fd(int node, const ModuleFeedback& fb, const wire::ModuleTiming& t,
+CodecStatus encode_feedback_fd(int node, const FeedbackFrame& fb, const wire::ModuleTiming& t,
                                canfd_frame& out) noexcept {
   std::memset(&out, 0, sizeof out);
   can_frame c{};
@@ -154,7 +150,7 @@ CodecStatus encode_feedback_fd(int node, const ModuleFeedback& fb, const wire::M
   return s;
 }
 
-CodecStatus decode_feedback_fd(const canfd_frame& in, int& node, ModuleFeedback& fb,
+CodecStatus decode_feedback_fd(const canfd_frame& in, int& node, FeedbackFrame& fb,
                                wire::ModuleTiming& t) noexcept {
   if (in.can_id & kFlagMask) return CodecStatus::kWrongId;
   const canid_t id = in.can_id & CAN_SFF_MASK;
@@ -163,11 +159,9 @@ CodecStatus decode_feedback_fd(const canfd_frame& in, int& node, ModuleFeedback&
   node = static_cast<int>(id - kFeedbackBase);
   if (in.len != kFdFeedbackLen) return CodecStatus::kWrongLength;
   if (crc16_frame(id, in.data, 14) != get_u16(in.data + 14)) return CodecStatus::kChecksum;
-  fb.beta = wire::from_i16(get_i16(in.data + 0), wire::kBetaLsb);
-  fb.beta_dot = wire::from_i16(get_i16(in.data + 2), wire::kBetaDotLsb);
-  fb.deflection = wire::from_i16(get_i16(in.data + 4), wire::kDeflectionLsb);
+  wire::get_sample_values(in.data, fb.sample);
+  fb.sample.status = wire::unpack_module_status(static_cast<std::uint8_t>(in.data[6] >> 4));
   fb.counter = in.data[6] & kClassicCounterMask;
-  fb.status = wire::unpack_module_status(static_cast<std::uint8_t>(in.data[6] >> 4));
   t.applied_tag = in.data[7];
   t.sample_us = wire::get_u32(in.data + 8);
   wire::unpack_age(get_u16(in.data + 12), t);

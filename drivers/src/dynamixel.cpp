@@ -316,10 +316,8 @@ void decode_command_block(const std::uint8_t* i, CommandBlock& c) noexcept {
 
 std::uint8_t encode_feedback_block(const FeedbackBlock& fb, std::uint8_t* o) noexcept {
   std::uint8_t f = 0;
-  wire::put_i16(o + 0, wire::to_i16(fb.beta, wire::kBetaLsb, f));
-  wire::put_i16(o + 2, wire::to_i16(fb.beta_dot, wire::kBetaDotLsb, f));
-  wire::put_i16(o + 4, wire::to_i16(fb.deflection, wire::kDeflectionLsb, f));
-  o[6] = wire::pack_module_status(fb.status);
+  wire::put_sample_values(o, fb.sample, f);
+  o[6] = wire::pack_module_status(fb.sample.status);
   o[7] = fb.echo;
   wire::put_u32(o + 8, fb.timing.sample_us);
   wire::put_u16(o + 12, wire::pack_age(fb.timing));
@@ -328,10 +326,8 @@ std::uint8_t encode_feedback_block(const FeedbackBlock& fb, std::uint8_t* o) noe
 }
 
 void decode_feedback_block(const std::uint8_t* i, FeedbackBlock& fb) noexcept {
-  fb.beta = wire::from_i16(wire::get_i16(i + 0), wire::kBetaLsb);
-  fb.beta_dot = wire::from_i16(wire::get_i16(i + 2), wire::kBetaDotLsb);
-  fb.deflection = wire::from_i16(wire::get_i16(i + 4), wire::kDeflectionLsb);
-  fb.status = wire::unpack_module_status(static_cast<std::uint8_t>(i[6] & 0x0Fu));
+  wire::get_sample_values(i, fb.sample);
+  fb.sample.status = wire::unpack_module_status(static_cast<std::uint8_t>(i[6] & 0x0Fu));
   fb.echo = i[7];
   fb.timing.sample_us = wire::get_u32(i + 8);
   wire::unpack_age(wire::get_u16(i + 12), fb.timing);
@@ -340,7 +336,7 @@ void decode_feedback_block(const std::uint8_t* i, FeedbackBlock& fb) noexcept {
 
 namespace x {
 
-void decode_servo_feedback(const std::uint8_t* i, double current_lsb, ServoFeedback& f) noexcept {
+void decode_present_values(const std::uint8_t* i, double current_lsb, PresentValues& f) noexcept {
   f.current = wire::get_i16(i) * current_lsb;
   f.velocity = static_cast<std::int32_t>(wire::get_u32(i + 2)) * kVelocityLsb;
   f.position = static_cast<std::int32_t>(wire::get_u32(i + 6)) * kPositionLsb;

@@ -327,8 +327,7 @@ void SerialDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns) no
     case FrameAge::kLate:
       ++counters_.late;
       status_[ju] |= kStatusLate;
-      late_[ju].offer_values(fb.echo, answered, track_[ju].sure() && answered != 0, fb.beta,
-                             fb.beta_dot, fb.deflection, fb.status);
+      late_[ju].offer_values(fb.echo, answered, track_[ju].sure() && answered != 0, fb.sample);
       late_[ju].offer_timing(fb.echo, fb.timing);
       break;
     case FrameAge::kOutOfOrder:
@@ -415,8 +414,7 @@ IoStatus SerialDriver::read(std::int64_t now_ns, std::int64_t deadline_ns, Feedb
       // No fresh answer, but a late one: an older sample at its own (module) time. It updates the
       // clock with the lower bound of the SYNC it answered.
       const wire::ModuleTiming& t = late.timing;
-      last_[ju] = dxl::FeedbackBlock{late.beta, late.beta_dot, late.deflection, late.status,
-                                     late.values_echo, t};
+      last_[ju] = dxl::FeedbackBlock{late.values, late.values_echo, t};
       hand_out(t, log_, late.answered, late.sure, 256, clk, handed_[ju], out, ju);
       out.late_applied_ns[ju] = 0;
       ++counters_.late_used;
@@ -426,11 +424,9 @@ IoStatus SerialDriver::read(std::int64_t now_ns, std::int64_t deadline_ns, Feedb
       ++counters_.missing;
     }
     track_[ju].end_cycle(cycle_, rc_[ju].fresh);
-    const dxl::FeedbackBlock& fb = last_[ju];
-    out.beta[ju] = fb.beta;
-    out.beta_dot[ju] = fb.beta_dot;
-    out.deflection[ju] = fb.deflection;
-    out.status[ju] = static_cast<std::uint16_t>(st | fb.status);
+    JointSample sample = last_[ju].sample;
+    sample.status = static_cast<std::uint16_t>(st | sample.status);
+    out.set_joint(ju, sample);
   }
   if (!sent) return IoStatus::kBusError;
   if (fresh_count_ + late_used == 0) return IoStatus::kTimeout;

@@ -253,7 +253,7 @@ void SocketCanDriver::handle_error_frame(const can_frame& f) noexcept {
 
 void SocketCanDriver::handle_feedback(const can_frame& f, std::int64_t stamp_ns) noexcept {
   int node = 0;
-  can::ModuleFeedback fb{};
+  can::FeedbackFrame fb{};
   const can::CodecStatus s = can::decode_feedback(f, node, fb);
   const int j = can::joint_of_node(node);
   if (s == can::CodecStatus::kChecksum) {
@@ -270,7 +270,7 @@ void SocketCanDriver::handle_feedback(const can_frame& f, std::int64_t stamp_ns)
 
 void SocketCanDriver::handle_feedback_fd(const canfd_frame& f, std::int64_t stamp_ns) noexcept {
   int node = 0;
-  can::ModuleFeedback fb{};
+  can::FeedbackFrame fb{};
   wire::ModuleTiming t{};
   const can::CodecStatus s = can::decode_feedback_fd(f, node, fb, t);
   const int j = can::joint_of_node(node);
@@ -286,7 +286,7 @@ void SocketCanDriver::handle_feedback_fd(const canfd_frame& f, std::int64_t stam
   take_feedback(j, fb, &t, stamp_ns);
 }
 
-void SocketCanDriver::take_feedback(int j, const can::ModuleFeedback& fb,
+void SocketCanDriver::take_feedback(int j, const can::FeedbackFrame& fb,
                                     const wire::ModuleTiming* t, std::int64_t stamp_ns) noexcept {
   const auto ju = static_cast<std::size_t>(j);
   // The echo is 4 bits on both CAN frame sets (the FD feedback keeps the classic layout's byte 6).
@@ -299,7 +299,7 @@ void SocketCanDriver::take_feedback(int j, const can::ModuleFeedback& fb,
   }
   switch (age) {
     case FrameAge::kFresh:
-      last_[ju] = fb;
+      last_[ju] = fb.sample;
       ++fresh_count_;
       if (stamp_ns > stamp_ns_) stamp_ns_ = stamp_ns;
       fresh_answered_[ju] = answered;
@@ -316,8 +316,7 @@ void SocketCanDriver::take_feedback(int j, const can::ModuleFeedback& fb,
     case FrameAge::kLate:
       ++counters_.late;
       status_[ju] |= kStatusLate;
-      late_[ju].offer_values(fb.counter, answered, track_[ju].sure() && answered != 0, fb.beta,
-                             fb.beta_dot, fb.deflection, fb.status);
+      late_[ju].offer_values(fb.counter, answered, track_[ju].sure() && answered != 0, fb.sample);
       if (t) late_[ju].offer_timing(fb.counter, *t);
       break;
     case FrameAge::kOutOfOrder:
@@ -426,8 +425,7 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
       // No fresh answer, but a late one (values and record of the same SYNC): an older sample at
       // its own module time. It updates the clock with the lower bound of the SYNC it answered.
       const wire::ModuleTiming& t = late.timing;
-      last_[ju] = can::ModuleFeedback{late.beta, late.beta_dot, late.deflection, late.status,
-                                      late.values_echo};
+      last_[ju] = late.values;
       hand_out(t, log_, late.answered, late.sure, modulus, clk, handed_[ju], out, ju);
       out.late_applied_ns[ju] = 0;
       ++counters_.late_used;
@@ -438,11 +436,9 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
     }
     if (bus_bad) st |= kStatusBusError;
     track_[ju].end_cycle(cycle_, rc_[ju].fresh);
-    const can::ModuleFeedback& fb = last_[ju];
-    out.beta[ju] = fb.beta;
-    out.beta_dot[ju] = fb.beta_dot;
-    out.deflection[ju] = fb.deflection;
-    out.status[ju] = static_cast<std::uint16_t>(st | fb.status);
+    JointSample sample = last_[ju];
+    sample.status = static_cast<std::uint16_t>(st | sample.status);
+    out.set_joint(ju, sample);
   }
   if (bus_bad) return IoStatus::kBusError;
   if (fresh_count_ + late_used == 0) return IoStatus::kTimeout;

@@ -328,7 +328,7 @@ void XSeriesDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns,
     ++counters_.late;
     status_[ju] |= kStatusLate;
     if (older && servo) {
-      dxl::x::decode_servo_feedback(p.params.data(), lsb_[ju], late_servo_[ju]);
+      dxl::x::decode_present_values(p.params.data(), lsb_[ju], late_servo_[ju]);
       late_servo_got_[ju] = true;
     } else if (older) {
       late_sensor_[ju] = wire::get_i16(p.params.data()) * wire::kDeflectionLsb;
@@ -346,7 +346,7 @@ void XSeriesDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns,
   got = true;
   if (stamp_ns > stamp_ns_) stamp_ns_ = stamp_ns;
   if (servo) {
-    dxl::x::decode_servo_feedback(p.params.data(), lsb_[ju], servo_[ju]);
+    dxl::x::decode_present_values(p.params.data(), lsb_[ju], servo_[ju]);
     // The alert bit: a Hardware Error Status ≠ 0, and an X-series servo then holds torque off.
     alert_[ju] = static_cast<std::uint16_t>(
         (alert_[ju] & ~kStatusTorqueOff) | ((p.error & dxl::kErrAlert) ? kStatusTorqueOff : 0));
@@ -409,12 +409,10 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
     out.late_applied_ns[ju] = 0;
     // Hand out a sample: the servo's and sensor's values, when they were sampled, and the command
     // in effect then (age: cycles since that Bulk Read).
-    const auto hand_out = [&](const dxl::x::ServoFeedback& sv, double defl, std::int64_t at,
+    const auto hand_out = [&](const dxl::x::PresentValues& sv, double defl, std::int64_t at,
                               std::uint64_t seq, const std::array<std::int64_t, kMaxJoints>& when,
                               std::uint64_t age) {
-      beta_[ju] = sv.position;
-      beta_dot_[ju] = sv.velocity;
-      deflection_[ju] = defl;
+      last_[ju] = JointSample{sv.position, sv.velocity, defl, 0};
       have_sample_[ju] = true;
       out.sample_ns[ju] = at;
       out.applied_seq[ju] = seq;
@@ -449,10 +447,9 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
     }
     if (!torque_on_[ju]) st |= kStatusTorqueOff;
     if (goal_flags_[ju] & wire::kQuantClamped) st |= kStatusSaturated;
-    out.beta[ju] = beta_[ju];
-    out.beta_dot[ju] = beta_dot_[ju];
-    out.deflection[ju] = deflection_[ju];
-    out.status[ju] = static_cast<std::uint16_t>(st | alert_[ju]);
+    JointSample sample = last_[ju];
+    sample.status = static_cast<std::uint16_t>(st | alert_[ju]);
+    out.set_joint(ju, sample);
   }
   if (!sent) return IoStatus::kBusError;
   if (fresh + late_used == 0) return IoStatus::kTimeout;
@@ -473,7 +470,7 @@ bool XSeriesDriver::send(const Command* cmd, std::int64_t until_ns) noexcept {
       double u = cmd->tau[ju];
       if (cmd->kp[ju] != 0.0 || cmd->kd[ju] != 0.0) {
         u = module_law(cmd->tau[ju], cmd->kp[ju], cmd->beta_ref[ju], cmd->kd[ju], cmd->beta_dot_ref[ju],
-                       beta_[ju], beta_dot_[ju]);
+                       last_[ju].beta, last_[ju].beta_dot);
         if (!have_sample_[ju]) u = std::nan("");  // no sample yet: no law to evaluate
       }
       // The controller's host-side PD (pd_placement: host) is in τ: on a sample older than

@@ -16,7 +16,7 @@ using can::CodecStatus;
 namespace {
 
 can_frame valid_feedback() {
-  can::ModuleFeedback fb{0.5, -1.25, 0.01, pd::kStatusOverTemp, 7};
+  can::FeedbackFrame fb{{0.5, -1.25, 0.01, pd::kStatusOverTemp}, 7};
   can_frame f{};
   EXPECT_EQ(can::encode_feedback(3, fb, f), CodecStatus::kOk);
   return f;
@@ -29,21 +29,21 @@ TEST(CanProtocol, FeedbackRoundTripWithinResolution) {
   std::uniform_real_distribution<double> beta(-3.2, 3.2), rate(-32.0, 32.0), defl(-0.65, 0.65);
   std::uniform_int_distribution<int> node(1, can::kMaxNode), nib(0, 15), ctr(0, 255);
   for (int i = 0; i < 5000; ++i) {
-    can::ModuleFeedback in{beta(rng), rate(rng), defl(rng),
-                           pd::wire::unpack_module_status(static_cast<std::uint8_t>(nib(rng))),
-                           static_cast<std::uint8_t>(ctr(rng))};
+    can::FeedbackFrame in{{beta(rng), rate(rng), defl(rng),
+                           pd::wire::unpack_module_status(static_cast<std::uint8_t>(nib(rng)))},
+                          static_cast<std::uint8_t>(ctr(rng))};
     const int n = node(rng);
     can_frame f{};
     ASSERT_EQ(can::encode_feedback(n, in, f), CodecStatus::kOk);
     EXPECT_EQ(f.can_id, can::kFeedbackBase + static_cast<canid_t>(n));
-    can::ModuleFeedback out{};
+    can::FeedbackFrame out{};
     int n2 = 0;
     ASSERT_EQ(can::decode_feedback(f, n2, out), CodecStatus::kOk);
     EXPECT_EQ(n2, n);
-    EXPECT_LE(std::abs(out.beta - in.beta), pd::wire::kBetaLsb / 2 + 1e-12);
-    EXPECT_LE(std::abs(out.beta_dot - in.beta_dot), pd::wire::kBetaDotLsb / 2 + 1e-12);
-    EXPECT_LE(std::abs(out.deflection - in.deflection), pd::wire::kDeflectionLsb / 2 + 1e-12);
-    EXPECT_EQ(out.status, in.status);
+    EXPECT_LE(std::abs(out.sample.beta - in.sample.beta), pd::wire::kBetaLsb / 2 + 1e-12);
+    EXPECT_LE(std::abs(out.sample.beta_dot - in.sample.beta_dot), pd::wire::kBetaDotLsb / 2 + 1e-12);
+    EXPECT_LE(std::abs(out.sample.deflection - in.sample.deflection), pd::wire::kDeflectionLsb / 2 + 1e-12);
+    EXPECT_EQ(out.sample.status, in.sample.status);
     EXPECT_EQ(out.counter, in.counter & 0x0F);  // classic frames carry the counter mod 16
   }
 }
@@ -119,12 +119,12 @@ TEST(CanProtocol, FdCommandRoundTripEveryCount) {
 
 TEST(CanProtocol, SaturationAndNonFiniteAreReportedAndSafe) {
   can_frame f{};
-  can::ModuleFeedback fb{10.0, 0.0, 0.0, 0, 0};  // β beyond ±3.2767 rad
+  can::FeedbackFrame fb{{10.0, 0.0, 0.0, 0}, 0};  // β beyond ±3.2767 rad
   EXPECT_EQ(can::encode_feedback(1, fb, f), CodecStatus::kClamped);
-  can::ModuleFeedback d{};
+  can::FeedbackFrame d{};
   int n = 0;
   ASSERT_EQ(can::decode_feedback(f, n, d), CodecStatus::kOk);
-  EXPECT_NEAR(d.beta, 32767 * pd::wire::kBetaLsb, 1e-12);
+  EXPECT_NEAR(d.sample.beta, 32767 * pd::wire::kBetaLsb, 1e-12);
 
   // A NaN command goes out as torque-off.
   can::JointCommand c{std::numeric_limits<double>::quiet_NaN(), 0.1, 0.0, false, 3};
@@ -158,7 +158,7 @@ TEST(CanProtocol, SaturationAndNonFiniteAreReportedAndSafe) {
 
 TEST(CanProtocol, MalformedFeedbackRejectedWithDistinctStatus) {
   int node = 0;
-  can::ModuleFeedback fb{};
+  can::FeedbackFrame fb{};
   // Wrong id: outside 0x181…0x1BF, a command id, extended/RTR/error flag.
   for (canid_t id : {can::kFeedbackBase, can::kFeedbackBase + 64u, can::kCommandBase + 1u,
                      can::kSyncId}) {
@@ -324,10 +324,10 @@ TEST(CanProtocol, CounterWrapAround) {
   }
   // Classic feedback echoes c mod 16: 15 → 0 wraps like the SYNC counter 255 → 0.
   for (unsigned c = 250; c < 262; ++c) {
-    can::ModuleFeedback fb{};
+    can::FeedbackFrame fb{};
     fb.counter = static_cast<std::uint8_t>(c & 0xFF);
     ASSERT_EQ(can::encode_feedback(1, fb, f), CodecStatus::kOk);
-    can::ModuleFeedback d{};
+    can::FeedbackFrame d{};
     int node = 0;
     ASSERT_EQ(can::decode_feedback(f, node, d), CodecStatus::kOk);
     EXPECT_EQ(d.counter, c & 0x0F);
@@ -368,20 +368,20 @@ TEST(CanTiming, TimingFrameRoundTripAndChecksum) {
 TEST(CanTiming, FdFeedbackCarriesTheTimingRecord) {
   namespace can = pedalwave::drivers::can;
   namespace wire = pedalwave::drivers::wire;
-  const can::ModuleFeedback fb{0.5, -1.25, 0.01, pedalwave::drivers::kStatusSaturated, 9};
+  const can::FeedbackFrame fb{{0.5, -1.25, 0.01, pedalwave::drivers::kStatusSaturated}, 9};
   const wire::ModuleTiming t{123456789u, 800, false, 0xC3};
   canfd_frame f{};
   ASSERT_EQ(can::encode_feedback_fd(3, fb, t, f), can::CodecStatus::kOk);
   EXPECT_EQ(f.len, can::kFdFeedbackLen);
   EXPECT_EQ(f.can_id, can::kFeedbackBase + 3);
   int node = 0;
-  can::ModuleFeedback b{};
+  can::FeedbackFrame b{};
   wire::ModuleTiming bt{};
   ASSERT_EQ(can::decode_feedback_fd(f, node, b, bt), can::CodecStatus::kOk);
   EXPECT_EQ(node, 3);
-  EXPECT_NEAR(b.beta, 0.5, 0.5e-4);
-  EXPECT_NEAR(b.beta_dot, -1.25, 0.5e-3);
-  EXPECT_NEAR(b.deflection, 0.01, 1e-5);
+  EXPECT_NEAR(b.sample.beta, 0.5, 0.5e-4);
+  EXPECT_NEAR(b.sample.beta_dot, -1.25, 0.5e-3);
+  EXPECT_NEAR(b.sample.deflection, 0.01, 1e-5);
   EXPECT_EQ(b.counter, 9);
   EXPECT_EQ(bt.sample_us, t.sample_us);
   EXPECT_EQ(bt.applied_age_us, 800);

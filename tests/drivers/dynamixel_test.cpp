@@ -165,17 +165,17 @@ TEST(Dynamixel, RegisterBlocksRoundTrip) {
     EXPECT_EQ(d.torque_off, c.torque_off);
     EXPECT_EQ(d.counter, c.counter);
 
-    dxl::FeedbackBlock f{3 * u(rng), 30 * u(rng), 0.6 * u(rng),
-                         static_cast<std::uint16_t>(i % 2 ? pd::kStatusSaturated : 0),
+    dxl::FeedbackBlock f{{3 * u(rng), 30 * u(rng), 0.6 * u(rng),
+                          static_cast<std::uint16_t>(i % 2 ? pd::kStatusSaturated : 0)},
                          static_cast<std::uint8_t>(255 - i % 256)};
     std::uint8_t rf[dxl::kFeedbackBlockSize];
     EXPECT_EQ(dxl::encode_feedback_block(f, rf), 0);
     dxl::FeedbackBlock g{};
     dxl::decode_feedback_block(rf, g);
-    EXPECT_NEAR(g.beta, f.beta, pd::wire::kBetaLsb / 2 + 1e-12);
-    EXPECT_NEAR(g.beta_dot, f.beta_dot, pd::wire::kBetaDotLsb / 2 + 1e-12);
-    EXPECT_NEAR(g.deflection, f.deflection, pd::wire::kDeflectionLsb / 2 + 1e-12);
-    EXPECT_EQ(g.status, f.status);
+    EXPECT_NEAR(g.sample.beta, f.sample.beta, pd::wire::kBetaLsb / 2 + 1e-12);
+    EXPECT_NEAR(g.sample.beta_dot, f.sample.beta_dot, pd::wire::kBetaDotLsb / 2 + 1e-12);
+    EXPECT_NEAR(g.sample.deflection, f.sample.deflection, pd::wire::kDeflectionLsb / 2 + 1e-12);
+    EXPECT_EQ(g.sample.status, f.sample.status);
     EXPECT_EQ(g.echo, f.echo);
   }
 }
@@ -241,14 +241,14 @@ TEST(Dynamixel, ControlTableRules) {
 }
 
 // The X-series' units (XM430-W350 e-Manual): 4096 counts per revolution, 0.229 rev/min, 2.69 mA.
-TEST(DynamixelX, FeedbackUnitsAndGoalCurrent) {
+TEST(DynamixelX, PresentValueUnitsAndGoalCurrent) {
   namespace x = dxl::x;
   std::uint8_t raw[x::kFeedbackSize];
   pd::wire::put_i16(raw, -100);                                        // −269 mA
   pd::wire::put_u32(raw + 2, static_cast<std::uint32_t>(-262));        // −60 rev/min
   pd::wire::put_u32(raw + 6, 1024);                                    // a quarter turn
-  x::ServoFeedback f{};
-  x::decode_servo_feedback(raw, x::kCurrentLsbXM430, f);
+  x::PresentValues f{};
+  x::decode_present_values(raw, x::kCurrentLsbXM430, f);
   EXPECT_NEAR(f.current, -0.269, 1e-12);
   EXPECT_NEAR(f.velocity, -262 * 0.229 * 2 * M_PI / 60, 1e-9);
   EXPECT_NEAR(f.velocity, -2 * M_PI, 0.01);  // ≈ −1 rev/s

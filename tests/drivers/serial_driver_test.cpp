@@ -280,7 +280,7 @@ struct Scripted {
   void status(std::uint8_t id, std::uint8_t echo, std::uint8_t err = 0, double beta = 0.1,
               std::size_t cut = 0) {
     std::uint8_t block[dxl::kFeedbackBlockSize];
-    dxl::encode_feedback_block({beta, 0, 0, 0, echo}, block);
+    dxl::encode_feedback_block({{beta, 0, 0, 0}, echo}, block);
     std::array<std::uint8_t, 64> out{};
     std::size_t n = 0;
     ASSERT_EQ(dxl::build_status(id, err, block, out, n), dxl::DxlStatus::kOk);
@@ -370,7 +370,7 @@ TEST(SerialScripted, GarbageShortReadsErrorsAndWrongIds) {
   s.drain_master();
   {
     std::uint8_t block[dxl::kFeedbackBlockSize];
-    dxl::encode_feedback_block({0.1, 0, 0, 0, s.next()}, block);
+    dxl::encode_feedback_block({{0.1, 0, 0, 0}, s.next()}, block);
     std::array<std::uint8_t, 64> out{};
     std::size_t n = 0;
     dxl::build_status(2, 0, block, out, n);

@@ -332,7 +332,7 @@ struct Scripted {
   // Queue a feedback frame of `node` echoing `counter`.
   void feedback(int node, std::uint8_t counter, double beta = 0.1) {
     can_frame f{};
-    can::encode_feedback(node, {beta, 0.0, 0.0, 0, counter}, f);
+    can::encode_feedback(node, {{beta, 0.0, 0.0, 0}, counter}, f);
     ASSERT_EQ(::send(fds[1], &f, CAN_MTU, 0), static_cast<ssize_t>(CAN_MTU));
   }
   void raw(const void* p, std::size_t n) { ASSERT_EQ(::send(fds[1], p, n, 0), static_cast<ssize_t>(n)); }
@@ -360,13 +360,13 @@ TEST(CanScripted, MalformedRecordsAndFramesAreCountedNotUsed) {
   EXPECT_NEAR(fb.beta[0], 0.5, 1e-4);
   // Wrong length, unknown id, node beyond the configured joints, truncated record, a big FD frame.
   can_frame bad{};
-  can::encode_feedback(1, {0.9, 0, 0, 0, s.next()}, bad);
+  can::encode_feedback(1, {{0.9, 0, 0, 0}, s.next()}, bad);
   bad.len = 7;
   s.raw(&bad, CAN_MTU);
-  can::encode_feedback(1, {0.9, 0, 0, 0, s.next()}, bad);
+  can::encode_feedback(1, {{0.9, 0, 0, 0}, s.next()}, bad);
   bad.can_id = 0x123;
   s.raw(&bad, CAN_MTU);
-  can::encode_feedback(5, {0.9, 0, 0, 0, s.next()}, bad);
+  can::encode_feedback(5, {{0.9, 0, 0, 0}, s.next()}, bad);
   s.raw(&bad, CAN_MTU);
   s.raw(&bad, 10);
   canfd_frame big{};
@@ -536,7 +536,7 @@ TEST(CanAllocation, SteadyStateReadWriteAllocateNothing) {
       rig.drv->write(cmd);
       can_frame f{};
       canfd_frame ff{};
-      can::ModuleFeedback mf{};
+      can::FeedbackFrame mf{};
       int node = 0;
       can::encode_feedback(1, mf, f);
       can::decode_feedback(f, node, mf);

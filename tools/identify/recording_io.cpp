@@ -4,11 +4,10 @@
 // joined by cycle into the same Recording (recording.hpp).
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
-#include <fstream>
 #include <map>
 #include <stdexcept>
 
+#include "pedalwave/csv/csv.hpp"
 #include "pedalwave/mcap/reader.hpp"
 #include "pedalwave/mcap/ros2_decode.hpp"
 #include "recording.hpp"
@@ -192,36 +191,19 @@ Recording read_recording_mcap(const fs::path& file) {
 // ---- the CSV recorder's files -------------------------------------------------------------------------
 namespace {
 
-// One CSV file of the recorder: header names, then the columns asked for (numbers), by name.
+// One CSV file of the recorder, read by the project's reader (csv::Table): seq and stamp_ns as
+// exact integers (a nanosecond stamp is beyond a double's 2^53), the text columns the recorder
+// writes (a mode's name, the robot's name and driver) as text, every other cell a number.
 class RecorderCsv {
  public:
-  explicit RecorderCsv(fs::path file) : file_(std::move(file)) {
-    std::ifstream in(file_);
-    if (!in) throw std::runtime_error(file_.string() + ": cannot open the recorder's CSV file");
-    std::string line;
-    if (!std::getline(in, line)) throw std::runtime_error(file_.string() + ": empty: expected a header line");
-    names_ = split(line);
-    for (std::size_t i = 0; i < names_.size(); ++i) index_[names_[i]] = i;
-    while (std::getline(in, line))
-      if (!line.empty()) rows_.push_back(split(line));
-  }
-  [[nodiscard]] std::size_t rows() const { return rows_.size(); }
-  [[nodiscard]] bool has(const std::string& c) const { return index_.count(c) != 0; }
-  [[nodiscard]] double number(std::size_t row, const std::string& column) const {
-    const std::string& text = field(row, column);
-    char* end = nullptr;
-    const double v = std::strtod(text.c_str(), &end);
-    if (text.empty() || end != text.c_str() + text.size())
-      throw std::runtime_error(where(row) + ", column " + column + " = \"" + text + "\": expected a number");
-    return v;
-  }
+  explicit RecorderCsv(const fs::path& file, std::vector<std::string> integer_columns)
+      : table_(csv::Table::read(file, {.integer_columns = std::move(integer_columns),
+                                        .text_columns = {"mode_name", "name", "driver"}})) {}
+  [[nodiscard]] std::size_t rows() const { return table_.rows(); }
+  [[nodiscard]] bool has(const std::string& c) const { return table_.has(c); }
+  [[nodiscard]] double number(std::size_t row, const std::string& column) const { return table_.column(column)[row]; }
   [[nodiscard]] long long integer(std::size_t row, const std::string& column) const {
-    const std::string& text = field(row, column);
-    char* end = nullptr;
-    const long long v = std::strtoll(text.c_str(), &end, 10);
-    if (text.empty() || end != text.c_str() + text.size())
-      throw std::runtime_error(where(row) + ", column " + column + " = \"" + text + "\": expected an integer");
-    return v;
+    return table_.integers(column)[row];
   }
   // Columns <prefix>_1, <prefix>_2, … (1-based) present in the header.
   [[nodiscard]] int count(const std::string& prefix) const {
@@ -237,53 +219,29 @@ class RecorderCsv {
   }
   void require(const std::string& column, const std::string& what) const {
     if (!has(column))
-      throw std::runtime_error(file_.string() + ": column " + column + " missing: expected " + what);
+      throw std::runtime_error(table_.source() + ": column " + column + " missing: expected " + what);
   }
 
  private:
-  static std::vector<std::string> split(const std::string& line) {
-    std::vector<std::string> out(1);
-    bool quoted = false;
-    for (std::size_t i = 0; i < line.size(); ++i) {
-      const char c = line[i];
-      if (quoted) {
-        if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') out.back() += c, ++i;
-        else if (c == '"') quoted = false;
-        else out.back() += c;
-      } else if (c == '"') {
-        quoted = true;
-      } else if (c == ',') {
-        out.emplace_back();
-      } else if (c != '\r') {
-        out.back() += c;
-      }
-    }
-    return out;
-  }
-  std::string where(std::size_t row) const { return file_.string() + ":" + std::to_string(row + 2); }
-  const std::string& field(std::size_t row, const std::string& column) const {
-    const auto it = index_.find(column);
-    if (it == index_.end()) throw std::runtime_error(file_.string() + ": column " + column + " missing");
-    if (it->second >= rows_[row].size())
-      throw std::runtime_error(where(row) + ": " + std::to_string(rows_[row].size()) + " fields: expected " +
-                               std::to_string(names_.size()) + " (the header's)");
-    return rows_[row][it->second];
-  }
-
-  fs::path file_;
-  std::vector<std::string> names_;
-  std::map<std::string, std::size_t> index_;
-  std::vector<std::vector<std::string>> rows_;
+  csv::Table table_;
 };
 
 }  // namespace
 
 Recording read_recorder_csv(const fs::path& joint_state_csv, const fs::path& controller_state_csv) {
-  const RecorderCsv js(joint_state_csv), cs(controller_state_csv);
   const std::string what_js = "the CSV recorder's joint_state columns seq, stamp_ns, t, beta_j, beta_dot_j, alpha_j";
   const std::string what_cs = "the CSV recorder's controller_state columns seq, stamp_ns, mode, u_j";
-  for (const char* c : {"seq", "stamp_ns", "t", "beta_1", "beta_dot_1", "alpha_1"}) js.require(c, what_js);
-  for (const char* c : {"seq", "stamp_ns", "mode", "u_1"}) cs.require(c, what_cs);
+  // seq and stamp_ns are checked while reading (exact integers: the table names a missing one).
+  const auto read = [](const fs::path& file, const std::string& what) {
+    try {
+      return RecorderCsv(file, {"seq", "stamp_ns"});
+    } catch (const csv::Error& e) {
+      throw std::runtime_error(std::string(e.what()) + " (reading " + what + ")");
+    }
+  };
+  const RecorderCsv js = read(joint_state_csv, what_js), cs = read(controller_state_csv, what_cs);
+  for (const char* c : {"t", "beta_1", "beta_dot_1", "alpha_1"}) js.require(c, what_js);
+  for (const char* c : {"mode", "u_1"}) cs.require(c, what_cs);
   const int nj = js.count("beta"), nc = cs.count("u");
   std::vector<JointRow> joints;
   std::vector<ControllerRow> controller;
@@ -298,7 +256,7 @@ Recording read_recorder_csv(const fs::path& joint_state_csv, const fs::path& con
   const fs::path desc = js_name.substr(0, js_name.size() - std::string_view(".joint_state.csv").size()) +
                         ".robot_description.csv";
   if (ends_with(js_name, ".joint_state.csv") && fs::exists(desc) && fs::file_size(desc) > 0) {
-    const RecorderCsv d(desc);
+    const RecorderCsv d(desc, {});
     if (d.rows() > 0 && d.has("gear_ratio") && d.has("rotor_inertia")) {
       const std::size_t last = d.rows() - 1;
       r.gear_ratio = d.number(last, "gear_ratio");

@@ -1,6 +1,7 @@
 #include "pedalwave/csv/csv.hpp"
 
 #include <cerrno>
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
@@ -262,6 +263,16 @@ bool parse_number(std::string_view f, double& out) {
   return r.ec == std::errc() && r.ptr == f.data() + f.size();
 }
 
+enum class IntegerRead { kOk, kNotInteger, kOutOfRange };
+
+IntegerRead parse_integer(std::string_view f, std::int64_t& out) {
+  if (!f.empty() && f.front() == '+') f.remove_prefix(1);
+  if (f.empty()) return IntegerRead::kNotInteger;
+  const auto r = std::from_chars(f.data(), f.data() + f.size(), out);
+  if (r.ec == std::errc::result_out_of_range && r.ptr == f.data() + f.size()) return IntegerRead::kOutOfRange;
+  return r.ec == std::errc() && r.ptr == f.data() + f.size() ? IntegerRead::kOk : IntegerRead::kNotInteger;
+}
+
 // Splits at the commas outside quotes; a quoted field loses its quotes and "" becomes ".
 // `storage` keeps the unquoted text the views of such fields point into (a deque: appending
 // does not move its strings).
@@ -326,6 +337,22 @@ Table Table::parse(std::string_view text, std::string source, ReadOptions option
         t.names_.emplace_back(n);
       }
       t.columns_.resize(t.names_.size());
+      t.kinds_.assign(t.names_.size(), Kind::kNumber);
+      t.integers_.resize(t.names_.size());
+      t.texts_.resize(t.names_.size());
+      for (const std::string& n : options.integer_columns) {
+        const auto it = std::find(t.names_.begin(), t.names_.end(), n);
+        if (it == t.names_.end()) {
+          std::string avail;
+          for (const auto& m : t.names_) avail += (avail.empty() ? "" : ", ") + m;
+          throw Error(where + ": no column '" + n + "' (columns: " + avail + "): expected it, as integers");
+        }
+        t.kinds_[static_cast<std::size_t>(it - t.names_.begin())] = Kind::kInteger;
+      }
+      for (const std::string& n : options.text_columns) {
+        const auto it = std::find(t.names_.begin(), t.names_.end(), n);
+        if (it != t.names_.end()) t.kinds_[static_cast<std::size_t>(it - t.names_.begin())] = Kind::kText;
+      }
       have_header = true;
       continue;
     }
@@ -337,6 +364,24 @@ Table Table::parse(std::string_view text, std::string source, ReadOptions option
       continue;
     }
     for (std::size_t i = 0; i < fields.size(); ++i) {
+      if (t.kinds_[i] == Kind::kText) {
+        t.texts_[i].emplace_back(fields[i]);
+        t.columns_[i].push_back(std::numeric_limits<double>::quiet_NaN());
+        continue;
+      }
+      if (t.kinds_[i] == Kind::kInteger) {
+        std::int64_t n = 0;
+        const IntegerRead r = parse_integer(fields[i], n);
+        if (r != IntegerRead::kOk) {
+          throw Error(where + ": column " + std::to_string(i + 1) + " ('" + t.names_[i] + "'): '" +
+                      std::string(fields[i]) + "' is " +
+                      (r == IntegerRead::kOutOfRange ? "beyond the 64-bit integers" : "not an integer") +
+                      ": expected a whole number in [-9223372036854775808, 9223372036854775807]");
+        }
+        t.integers_[i].push_back(n);
+        t.columns_[i].push_back(static_cast<double>(n));
+        continue;
+      }
       double v = 0.0;
       if (!parse_number(fields[i], v)) {
         if (options.text_as_nan) {
@@ -384,6 +429,26 @@ const std::vector<double>& Table::column(std::size_t index) const {
                    std::to_string(columns_.size()) + " columns)");
   }
   return columns_[index];
+}
+
+const std::vector<std::int64_t>& Table::integers(std::string_view name) const {
+  const std::vector<double>& c = column(name);  // throws for a column the table lacks
+  const auto i = static_cast<std::size_t>(&c - columns_.data());
+  if (kinds_[i] != Kind::kInteger) {
+    throw Error(source_ + ": column '" + std::string(name) +
+                "' was not read as integers (expected it in Table::ReadOptions::integer_columns)");
+  }
+  return integers_[i];
+}
+
+const std::vector<std::string>& Table::texts(std::string_view name) const {
+  const std::vector<double>& c = column(name);
+  const auto i = static_cast<std::size_t>(&c - columns_.data());
+  if (kinds_[i] != Kind::kText) {
+    throw Error(source_ + ": column '" + std::string(name) +
+                "' was not read as text (expected it in Table::ReadOptions::text_columns)");
+  }
+  return texts_[i];
 }
 
 }  // namespace pedalwave::csv

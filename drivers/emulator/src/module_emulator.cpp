@@ -438,8 +438,7 @@ void CanModuleEmulator::on_sync(std::uint8_t counter, std::int64_t now) noexcept
   for (int j = 0; j < bank_.joints(); ++j) {
     const auto ju = static_cast<std::size_t>(j);
     if (!answer[ju]) continue;
-    const can::ModuleFeedback fb{s.beta[ju], s.beta_dot[ju], s.deflection[ju], s.status[ju],
-                                 bank_.echo(j)};
+    const can::FeedbackFrame fb{s.joint(ju), bank_.echo(j)};
     canfd_frame out{};
     std::size_t size = CAN_MTU;
     if (fd) {
@@ -660,8 +659,7 @@ void SerialModuleEmulator::refresh(int d) noexcept {
       ((s.status[ju] & kStatusEncoderFault) ? dxl::kHwErrEncoder : 0));
   if (!x_) {
     t[dxl::kRegTorqueEnable] = bank_.torque_off(j) ? 0 : 1;
-    const dxl::FeedbackBlock fb{s.beta[ju], s.beta_dot[ju], s.deflection[ju], s.status[ju],
-                                bank_.echo(j), bank_.timing(j)};
+    const dxl::FeedbackBlock fb{s.joint(ju), bank_.echo(j), bank_.timing(j)};
     dxl::encode_feedback_block(fb, t.data() + dxl::kRegFeedback);
     return;
   }

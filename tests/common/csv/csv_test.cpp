@@ -1,5 +1,6 @@
 // pedalwave::csv: the two number spellings (kFixed is fmt's "{}", checked against fmt itself),
-// rows cell by cell, a header written after the file is created, and the writer's errors.
+// rows cell by cell, a header written after the file is created, the writer's errors, and the
+// reader's exact integer and text columns.
 #include <gtest/gtest.h>
 
 #include <fmt/format.h>
@@ -139,6 +140,68 @@ TEST_F(CsvFiles, FoldersAreCreatedOnlyWhenAsked) {
     EXPECT_NE(what.find((dir / "none" / "x.csv").string()), std::string::npos) << what;
     EXPECT_NE(what.find("cannot open for writing: No such file or directory"), std::string::npos) << what;
   }
+}
+
+// Integer columns are exact where a double is not (a nanosecond stamp: beyond 2^53), text columns
+// keep their text, and a bad integer is an error naming the file, the line and the column.
+TEST(CsvTable, IntegerColumnsAreExactAndTextColumnsKeepTheirText) {
+  const std::string text =
+      "# a recording\n"
+      "seq,stamp_ns,mode_name,x\n"
+      "1,9007199254740993,RUNNING,0.5\n"         // 2^53 + 1: no double holds it
+      "2,9223372036854775807,\"a, b\",1.5\n"     // the largest int64
+      "3,-9223372036854775808,,2.5\n"            // the smallest
+      "4,+17,IDLE,nan\n";
+  const csv::Table::ReadOptions exact{.integer_columns = {"seq", "stamp_ns"}, .text_columns = {"mode_name", "absent"}};
+  const auto t = csv::Table::parse(text, "run.joint_state.csv", exact);
+  ASSERT_EQ(t.rows(), 4u);
+  EXPECT_EQ(t.integers("stamp_ns"),
+            (std::vector<std::int64_t>{9007199254740993LL, std::numeric_limits<std::int64_t>::max(),
+                                       std::numeric_limits<std::int64_t>::min(), 17}));
+  EXPECT_EQ(t.integers("seq"), (std::vector<std::int64_t>{1, 2, 3, 4}));
+  // column() of an integer column: the nearest doubles (2^53 + 1 is not one of them).
+  EXPECT_EQ(t.column("stamp_ns")[0], 9007199254740992.0);
+  EXPECT_NE(static_cast<std::int64_t>(t.column("stamp_ns")[0]), t.integers("stamp_ns")[0]);
+  EXPECT_EQ(t.texts("mode_name"), (std::vector<std::string>{"RUNNING", "a, b", "", "IDLE"}));
+  EXPECT_TRUE(std::isnan(t.column("mode_name")[0]));
+  EXPECT_EQ(t.column("x")[2], 2.5);
+  EXPECT_TRUE(std::isnan(t.column("x")[3]));
+  // Without the options the same text is an error at the text cell, and the accessors say why.
+  EXPECT_THROW((void)csv::Table::parse(text, "run.joint_state.csv"), csv::Error);
+  const auto lenient = csv::Table::parse(text, "r.csv", {.text_as_nan = true});
+  auto error_of = [](auto&& f) -> std::string {
+    try {
+      f();
+    } catch (const csv::Error& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_EQ(error_of([&] { (void)lenient.integers("stamp_ns"); }),
+            "r.csv: column 'stamp_ns' was not read as integers (expected it in Table::ReadOptions::integer_columns)");
+  EXPECT_EQ(error_of([&] { (void)lenient.texts("mode_name"); }),
+            "r.csv: column 'mode_name' was not read as text (expected it in Table::ReadOptions::text_columns)");
+  EXPECT_EQ(error_of([&] { (void)t.integers("t"); }), "run.joint_state.csv: no column 't' (columns: seq, stamp_ns, mode_name, x)");
+
+  // Bad integers name the file, the line and the column, whatever text_as_nan says.
+  const auto bad = [&](const std::string& cell) {
+    return error_of([&] {
+      (void)csv::Table::parse("# c\nseq,stamp_ns\n1,2\n2," + cell + "\n", "run.csv",
+                              {.text_as_nan = true, .integer_columns = {"stamp_ns"}});
+    });
+  };
+  const std::string range = ": expected a whole number in [-9223372036854775808, 9223372036854775807]";
+  EXPECT_EQ(bad("1.5"), "run.csv:4: column 2 ('stamp_ns'): '1.5' is not an integer" + range);
+  EXPECT_EQ(bad("1e9"), "run.csv:4: column 2 ('stamp_ns'): '1e9' is not an integer" + range);
+  EXPECT_EQ(bad(""), "run.csv:4: column 2 ('stamp_ns'): '' is not an integer" + range);
+  EXPECT_EQ(bad("12abc"), "run.csv:4: column 2 ('stamp_ns'): '12abc' is not an integer" + range);
+  EXPECT_EQ(bad("9223372036854775808"),
+            "run.csv:4: column 2 ('stamp_ns'): '9223372036854775808' is beyond the 64-bit integers" + range);
+  EXPECT_EQ(bad("-9223372036854775809"),
+            "run.csv:4: column 2 ('stamp_ns'): '-9223372036854775809' is beyond the 64-bit integers" + range);
+  // An integer column the header lacks.
+  EXPECT_EQ(error_of([&] { (void)csv::Table::parse("a,b\n1,2\n", "h.csv", {.integer_columns = {"seq"}}); }),
+            "h.csv:1: no column 'seq' (columns: a, b): expected it, as integers");
 }
 
 }  // namespace

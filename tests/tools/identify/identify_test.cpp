@@ -339,6 +339,49 @@ TEST(IdentifyData, BadRecordingNamesTheFileAndColumn) {
   fs::remove_all(d);
 }
 
+// The CSV recorder's files (pedalwave_monitor --record run.csv), read by csv::Table: stamp_ns exact
+// beyond 2^53 (where two stamps a nanosecond apart are the same double), the mode's name as text,
+// a bad cell named by file, line and column.
+TEST(IdentifyData, RecorderCsvStampsAreExactAndBadCellsNamed) {
+  const fs::path d = temp_dir("recorder_csv");
+  const long long base = 9007199254740993LL;  // 2^53 + 1: no double holds it
+  const auto files = [&](long long controller_stamp_1, const std::string& stamp_2, const std::string& beta_3) {
+    std::string js = "recv_ns,source_time_ns,seq,stamp_ns,t,beta_1,beta_dot_1,alpha_1,deflection_1,tau_sea_1\n";
+    std::string cs = "recv_ns,source_time_ns,seq,stamp_ns,t,mode,mode_name,alpha_d_1,eta_1,u_1\n";
+    for (int k = 0; k < 4; ++k) {
+      const std::string seq = std::to_string(100 + k), t = std::to_string(0.001 * k);
+      const long long stamp = base + 1000000LL * k;
+      js += "1,2," + seq + "," + (k == 2 ? stamp_2 : std::to_string(stamp)) + "," + t + "," +
+            (k == 3 ? beta_3 : std::to_string(0.1 * k)) + ",0.5,0.01,0.002,0.3\n";
+      cs += "1,2," + seq + "," + std::to_string(k == 1 ? controller_stamp_1 : stamp) + "," + t +
+            ",4,RUNNING,0,0," + std::to_string(0.2 * k) + "\n";
+    }
+    write(d / "run.joint_state.csv", js);
+    write(d / "run.controller_state.csv", cs);
+    return d / "run.csv";
+  };
+  const long long stamp_1 = base + 1000000LL, stamp_2 = base + 2000000LL;
+  const Recording r = read_recording(files(stamp_1, std::to_string(stamp_2), "0.3"));
+  EXPECT_EQ(r.joints, 1);
+  ASSERT_EQ(r.t.size(), 4u);
+  EXPECT_DOUBLE_EQ(r.beta[0][3], 0.3);
+  EXPECT_DOUBLE_EQ(r.u[0][2], 0.4);
+  EXPECT_DOUBLE_EQ(r.alpha[0][1], 0.01);
+  // The controller's stamp of cycle 101 a nanosecond off: the same double, a different stamp.
+  ASSERT_EQ(static_cast<double>(stamp_1), static_cast<double>(stamp_1 - 1));
+  const std::string off = error_of([&] { (void)read_recording(files(stamp_1 - 1, std::to_string(stamp_2), "0.3")); });
+  EXPECT_NE(off.find("cycle 101: joint_state stamp_ns " + std::to_string(stamp_1) + " and controller_state stamp_ns " +
+                     std::to_string(stamp_1 - 1)),
+            std::string::npos) << off;
+  const std::string not_integer = error_of([&] { (void)read_recording(files(stamp_1, "9.007e15", "0.3")); });
+  EXPECT_NE(not_integer.find("run.joint_state.csv:4: column 4 ('stamp_ns'): '9.007e15' is not an integer"),
+            std::string::npos) << not_integer;
+  const std::string not_number = error_of([&] { (void)read_recording(files(stamp_1, std::to_string(stamp_2), "oops")); });
+  EXPECT_NE(not_number.find("run.joint_state.csv:5: column 6 ('beta_1'): 'oops' is not a number"), std::string::npos)
+      << not_number;
+  fs::remove_all(d);
+}
+
 // ---- MCAP recordings --------------------------------------------------------------------------------------
 namespace {
 

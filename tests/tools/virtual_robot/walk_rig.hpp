@@ -351,15 +351,11 @@ class BusModelDriver final : public drivers::Driver {
     for (int j = 0; j < bank_.joints(); ++j) {
       const auto k = static_cast<std::size_t>(j);
       can_frame f{};
-      drivers::can::encode_feedback(drivers::can::node_of_joint(j),
-                                    {s.beta[k], s.beta_dot[k], s.deflection[k], s.status[k], counter_}, f);
+      drivers::can::encode_feedback(drivers::can::node_of_joint(j), {s.joint(k), counter_}, f);
       int node = 0;
-      drivers::can::ModuleFeedback m{};
+      drivers::can::FeedbackFrame m{};
       if (drivers::can::decode_feedback(f, node, m) != drivers::can::CodecStatus::kOk) return drivers::IoStatus::kBusError;
-      out.beta[k] = m.beta;
-      out.beta_dot[k] = m.beta_dot;
-      out.deflection[k] = m.deflection;
-      out.status[k] = m.status;
+      out.set_joint(k, m.sample);
       if (loss_ > 0 && std::uniform_real_distribution<double>(0, 1)(rng_) < loss_) {
         // A lost reply: the joint keeps its previous values, marked missing, no timing.
         out.beta[k] = last_.beta[k];

@@ -55,12 +55,10 @@ enum class CodecStatus : std::uint8_t {
   kBadArgument,   // (encoders) node/group/count outside the protocol's range: no frame produced
 };
 
-// One module's measurement as carried by a feedback frame.
-struct ModuleFeedback {
-  double beta = 0.0;          // motor output angle β [rad]
-  double beta_dot = 0.0;      // motor output rate β̇ [rad/s]
-  double deflection = 0.0;    // spring deflection β − α [rad]
-  std::uint16_t status = 0;   // module StatusBits (saturated, over-temp, encoder, torque off) [-]
+// What a feedback frame carries: the module's measurement and the SYNC counter it answers.
+struct FeedbackFrame {
+  JointSample sample{};       // β, β̇, deflection, module StatusBits (saturated, over-temp,
+                              // encoder, torque off)
   std::uint8_t counter = 0;   // echoed SYNC counter, mod 16 on classic frames [-]
 };
 
@@ -108,9 +106,9 @@ CodecStatus encode_sync(std::uint8_t counter, can_frame& out) noexcept;
 CodecStatus decode_sync(const can_frame& in, std::uint8_t& counter) noexcept;
 
 // Feedback of `node`. Encoder: kClamped/kNotFinite report saturation (frame still valid).
-CodecStatus encode_feedback(int node, const ModuleFeedback& fb, can_frame& out) noexcept;
+CodecStatus encode_feedback(int node, const FeedbackFrame& fb, can_frame& out) noexcept;
 // Decoder: node from the id; on kChecksum, `node` still holds the node named by the id.
-CodecStatus decode_feedback(const can_frame& in, int& node, ModuleFeedback& fb) noexcept;
+CodecStatus decode_feedback(const can_frame& in, int& node, FeedbackFrame& fb) noexcept;
 
 // Timing record of `node` on a classic bus (0x380 + node): [0-3] sample time, [4-5] age,
 // [6] bits 0-3 c mod 16 (the SYNC it answers), bits 4-7 applied tag mod 16, [7] CRC-8.
@@ -121,10 +119,10 @@ CodecStatus decode_timing(const can_frame& in, int& node, wire::ModuleTiming& t,
 
 // Feedback of `node` on an FD bus (0x180 + node, 16 bytes, BRS): [0-6] as the classic feedback,
 // [7] applied tag (8 bit), [8-11] sample time, [12-13] age, [14-15] CRC-16 over id + [0-13].
-CodecStatus encode_feedback_fd(int node, const ModuleFeedback& fb, const wire::ModuleTiming& t,
+CodecStatus encode_feedback_fd(int node, const FeedbackFrame& fb, const wire::ModuleTiming& t,
                                canfd_frame& out) noexcept;
 // On kChecksum, `node` still holds the node named by the id. kWrongLength for any other length.
-CodecStatus decode_feedback_fd(const canfd_frame& in, int& node, ModuleFeedback& fb,
+CodecStatus decode_feedback_fd(const canfd_frame& in, int& node, FeedbackFrame& fb,
                                wire::ModuleTiming& t) noexcept;
 
 // Classic command of `node`. A NaN/Inf value encodes torque-off (and returns kNotFinite).

@@ -209,11 +209,9 @@ struct CommandBlock {
   bool torque_off = false;    // safe torque off
   std::uint8_t counter = 0;   // cycle counter c the command was computed in [-]
 };
+// The feedback block: the module's measurement, the sync counter it latched and its timing record.
 struct FeedbackBlock {
-  double beta = 0.0;          // motor output angle β [rad]
-  double beta_dot = 0.0;      // motor output rate β̇ [rad/s]
-  double deflection = 0.0;    // spring deflection β − α [rad]
-  std::uint16_t status = 0;   // module StatusBits [-]
+  JointSample sample{};       // β, β̇, deflection, module StatusBits
   std::uint8_t echo = 0;      // last sync counter c the module latched [-]
   wire::ModuleTiming timing{};  // when it sampled, which command it applied last and when
 };
@@ -296,14 +294,17 @@ inline constexpr std::array<Register, 8> kSensorRegisters = {{
     {124, 2, Access::kR, false, 0, 0xFFFF, "deflection"},
 }};
 
-struct ServoFeedback {
+// The servo's present-value registers (Present Current, Velocity, Position) in SI: what the stock
+// servo says about its motor, not a joint measurement — the X-series driver makes the joint's
+// JointSample from the position and velocity and the deflection sensor's reading.
+struct PresentValues {
   double current = 0.0;   // present current [A]
   double velocity = 0.0;  // present velocity, output shaft [rad/s]
   double position = 0.0;  // present position, output shaft, 0 at count 0 [rad]
 };
 // The 10 bytes at 126 (Present Current i16, Velocity i32, Position i32) → SI, with the
 // servo's current LSB [A].
-void decode_servo_feedback(const std::uint8_t* in10, double current_lsb, ServoFeedback& f) noexcept;
+void decode_present_values(const std::uint8_t* in10, double current_lsb, PresentValues& f) noexcept;
 // Goal Current for output torque tau [N·m] through torque constant k_t [N·m/A]: rounded to the
 // LSB and saturated at ±limit LSB (the servo's Current Limit, register 38); NaN → 0. Returns
 // wire::kQuantClamped / kQuantNotFinite bits as the other encoders.

@@ -18,8 +18,7 @@
 namespace pedalwave::drivers {
 
 struct LateSample {
-  double beta = 0.0, beta_dot = 0.0, deflection = 0.0;  // the late answer's values
-  std::uint16_t status = 0;                              // its module StatusBits [-]
+  JointSample values{};                                  // the late answer's measurement
   std::uint8_t values_echo = 0;                          // SYNC counter it answered [-]
   std::uint64_t answered = 0;                            // … as a host cycle (AnswerTrack) [-]
   bool sure = false;                                     // … and whether that is certain
@@ -30,9 +29,9 @@ struct LateSample {
 
   void clear() noexcept { have_values = have_timing = false; }
   // A late frame's values (later frames overwrite: answers arrive in bus order, newest last).
-  void offer_values(std::uint8_t echo, std::uint64_t cycle, bool certain, double b, double bd,
-                    double d, std::uint16_t st) noexcept {
-    beta = b, beta_dot = bd, deflection = d, status = st, values_echo = echo, have_values = true;
+  void offer_values(std::uint8_t echo, std::uint64_t cycle, bool certain,
+                    const JointSample& v) noexcept {
+    values = v, values_echo = echo, have_values = true;
     answered = cycle, sure = certain;
   }
   void offer_timing(std::uint8_t echo, const wire::ModuleTiming& t) noexcept {

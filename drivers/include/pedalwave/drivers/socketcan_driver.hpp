@@ -133,7 +133,7 @@ class SocketCanDriver final : public Driver {
   void handle_error_frame(const can_frame& f) noexcept;
   void handle_feedback(const can_frame& f, std::int64_t stamp_ns) noexcept;
   void handle_feedback_fd(const canfd_frame& f, std::int64_t stamp_ns) noexcept;
-  void take_feedback(int j, const can::ModuleFeedback& fb, const wire::ModuleTiming* t,
+  void take_feedback(int j, const can::FeedbackFrame& fb, const wire::ModuleTiming* t,
                      std::int64_t stamp_ns) noexcept;
   void handle_timing(const can_frame& f, std::int64_t stamp_ns) noexcept;
   int pick_gains_joint(const Command& cmd) noexcept;
@@ -155,7 +155,7 @@ class SocketCanDriver final : public Driver {
   std::uint32_t rxq_ovfl_ = 0;      // last SO_RXQ_OVFL value [-]
   std::array<RollingCounterState, kMaxJoints> rc_{};
   std::array<std::uint16_t, kMaxJoints> status_{};   // this cycle's bits per joint
-  std::array<can::ModuleFeedback, kMaxJoints> last_{};  // last fresh values per joint
+  std::array<JointSample, kMaxJoints> last_{};  // last fresh values per joint
   // Gains sent last (classic: gains frame round robin).
   std::array<double, kMaxJoints> sent_kp_{};
   std::array<double, kMaxJoints> sent_kd_{};

@@ -80,6 +80,20 @@ inline std::int16_t get_i16(const std::uint8_t* p) noexcept {
   return static_cast<std::int16_t>(get_u16(p));
 }
 
+// A JointSample's three values as both module protocols lay them out (the CAN feedback frame's and
+// the DYNAMIXEL feedback block's bytes 0…5): β, β̇, deflection, int16 each at the resolutions
+// above. The status travels in each protocol's own place (pack_module_status below).
+inline void put_sample_values(std::uint8_t* p, const JointSample& s, std::uint8_t& flags) noexcept {
+  put_i16(p + 0, to_i16(s.beta, kBetaLsb, flags));
+  put_i16(p + 2, to_i16(s.beta_dot, kBetaDotLsb, flags));
+  put_i16(p + 4, to_i16(s.deflection, kDeflectionLsb, flags));
+}
+inline void get_sample_values(const std::uint8_t* p, JointSample& s) noexcept {
+  s.beta = from_i16(get_i16(p + 0), kBetaLsb);
+  s.beta_dot = from_i16(get_i16(p + 2), kBetaDotLsb);
+  s.deflection = from_i16(get_i16(p + 4), kDeflectionLsb);
+}
+
 // Module status nibble (4 bits) ↔ StatusBit mask. Bit 0 saturated, 1 over-temperature,
 // 2 encoder fault, 3 torque off. Other StatusBits are the host's and never go on the wire.
 inline std::uint8_t pack_module_status(std::uint16_t status) noexcept {

@@ -125,13 +125,13 @@ class XSeriesDriver final : public Driver, private DxlPacketSink {
   std::int64_t stamp_ns_ = 0;        // newest fresh reception this cycle [ns]
   int fresh_packets_ = 0;            // status packets of this cycle's Bulk Read received [-]
   std::array<bool, kMaxJoints> got_servo_{}, got_sensor_{};
-  std::array<dxl::x::ServoFeedback, kMaxJoints> servo_{};   // this cycle's
+  std::array<dxl::x::PresentValues, kMaxJoints> servo_{};   // this cycle's
   std::array<double, kMaxJoints> sensor_{};                 // this cycle's deflection [rad]
   std::array<std::uint16_t, kMaxJoints> alert_{};           // StatusBits from alert bits
   // Answers that came after the previous cycle's deadline, before this cycle's request: the
   // previous Bulk Read's, sampled at prev_sample_ns_ with prev_applied_* in effect.
   std::array<bool, kMaxJoints> late_servo_got_{}, late_sensor_got_{};
-  std::array<dxl::x::ServoFeedback, kMaxJoints> late_servo_{};
+  std::array<dxl::x::PresentValues, kMaxJoints> late_servo_{};
   std::array<double, kMaxJoints> late_sensor_{};
   std::int64_t prev_sample_ns_ = 0;
   std::uint64_t prev_applied_seq_ = kNoCommandSeq;
@@ -141,7 +141,7 @@ class XSeriesDriver final : public Driver, private DxlPacketSink {
   std::array<std::int64_t, kMaxJoints> handed_ns_{};        // sample time handed out last [ns]
   std::array<std::uint16_t, kMaxJoints> status_{};
   // The sample handed out last (what write() evaluates the law on).
-  std::array<double, kMaxJoints> beta_{}, beta_dot_{}, deflection_{};
+  std::array<JointSample, kMaxJoints> last_{};  // (status unused: set per cycle in read())
   std::array<bool, kMaxJoints> have_sample_{};
   std::array<std::uint64_t, kMaxJoints> age_{};  // cycles since that sample's Bulk Read [-]
   // Commands: per servo whether its torque is on, the last goal, and what was applied when.

@@ -129,7 +129,7 @@ class Writer {
   void check_count(std::size_t n);
 };
 
-// A numeric CSV held in memory, by column.
+// A numeric CSV held in memory, by column (and columns asked for as exact integers or as text).
 class Table {
  public:
   // How strict the reader is. The defaults suit the tools' own numeric files; a recording of
@@ -139,6 +139,14 @@ class Table {
     bool text_as_nan = false;  // a cell that is not a number reads as NaN instead of an error
     bool skip_ragged = false;  // a row with the wrong number of fields is skipped (and noted in
                                // skipped()) instead of an error
+    // Columns read exactly as signed 64-bit integers too (integers()): a double holds every
+    // integer only up to 2^53, a nanosecond stamp is beyond. A cell that is not an integer in
+    // [-2^63, 2^63) is an error naming the file, line and column (text_as_nan does not apply);
+    // column() holds the nearest double. A name the header lacks is an error.
+    std::vector<std::string> integer_columns = {};
+    // Columns of text (a name, a mode's name): kept as read (texts()), not parsed as numbers
+    // (column() holds NaN). A name the header lacks is ignored.
+    std::vector<std::string> text_columns = {};
   };
   // Reads a file. Throws Error naming the file (and the line and column) when it cannot be
   // opened, has no header, a header name repeats, a row has the wrong number of fields, or a
@@ -159,6 +167,10 @@ class Table {
   // Column by name; throws Error naming the source, the column and the available names.
   [[nodiscard]] const std::vector<double>& column(std::string_view name) const;
   [[nodiscard]] const std::vector<double>& column(std::size_t index) const;
+  // A column read as integers (ReadOptions::integer_columns) / as text (text_columns); throws
+  // Error naming the source and the column when it is not one.
+  [[nodiscard]] const std::vector<std::int64_t>& integers(std::string_view name) const;
+  [[nodiscard]] const std::vector<std::string>& texts(std::string_view name) const;
   // Comment lines (without the leading '#' and one following space), in order.
   [[nodiscard]] const std::vector<std::string>& comments() const { return comments_; }
   [[nodiscard]] const std::string& source() const { return source_; }
@@ -170,6 +182,10 @@ class Table {
   std::string source_;
   std::vector<std::string> names_;
   std::vector<std::vector<double>> columns_;
+  enum class Kind : std::uint8_t { kNumber, kInteger, kText };
+  std::vector<Kind> kinds_;                          // per column
+  std::vector<std::vector<std::int64_t>> integers_;  // per column (kInteger ones filled)
+  std::vector<std::vector<std::string>> texts_;      // per column (kText ones filled)
   std::vector<std::string> comments_;
   std::vector<std::string> skipped_;
 };

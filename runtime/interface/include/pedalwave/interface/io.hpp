@@ -71,6 +71,16 @@ inline constexpr std::uint64_t kNoCommandSeq = ~0ull;
 // observer integrates no interval in which it acts.
 inline constexpr std::uint64_t kUnknownSeq = ~0ull - 1;
 
+// One joint's measurement, motor side (model-spec.md §1): what a module reports per sample — the
+// own CAN feedback frame (can::FeedbackFrame) and the DYNAMIXEL feedback block (dxl::FeedbackBlock)
+// carry one beside their protocol's extras — and what Feedback holds per joint.
+struct JointSample {
+  double beta = 0.0;          // motor output angle β [rad]
+  double beta_dot = 0.0;      // motor output rate β̇ [rad/s]
+  double deflection = 0.0;    // spring deflection β − α [rad]
+  std::uint16_t status = 0;   // StatusBit mask (a module reports wire::kModuleStatusMask bits) [-]
+};
+
 // One cycle's measurements, motor side only (model-spec.md §1): the driver never sees link angles.
 struct Feedback {
   int joints = 0;                                // N-1 joints present [-]
@@ -96,6 +106,12 @@ struct Feedback {
   // sample it tells the observer when the gap's intermediate command took effect.
   std::array<std::uint64_t, kMaxJoints> late_applied_seq{};
   std::array<std::int64_t, kMaxJoints> late_applied_ns{};
+
+  // Joint j's measurement (β, β̇, deflection, status) as one sample, and its four arrays set from one.
+  JointSample joint(std::size_t j) const noexcept { return {beta[j], beta_dot[j], deflection[j], status[j]}; }
+  void set_joint(std::size_t j, const JointSample& s) noexcept {
+    beta[j] = s.beta, beta_dot[j] = s.beta_dot, deflection[j] = s.deflection, status[j] = s.status;
+  }
 };
 
 // One cycle's commands. The module applies, at its own internal rate until the next command,

@@ -37,7 +37,16 @@ struct ImplicitTerms {
   // M − θh (∂F/∂v + θh ∂F/∂q)).
   // With dq_in_dv > 0 and dFdq_v sized nq, also dFdq_v = ∂F/∂q · v at the evaluated v (what the
   // predictor's right-hand side needs of ∂F/∂q); left empty, it is not computed.
+  // with_jacobian false leaves dFdq and dFdv untouched (F, M and dFdq_v as asked): what
+  // implicit_contact's evaluations need while they reuse a factored Jacobian (jacobian_age).
+  // check_mass false assembles M without its Cholesky factorization (mass_valid not checked: the
+  // caller's own factorization reports a singular matrix).
   bool with_mass = true;
+  bool with_jacobian = true;
+  bool check_mass = true;
+  // Written by the plant: a hash of the contacts carrying force and each one's friction branch
+  // (stick band or sliding either way); equal signatures, the same branches of the force law.
+  std::uint64_t signature = 0;
   double dq_in_dv = 0.0;
   VectorXd dFdq_v = VectorXd();
 };
@@ -128,6 +137,8 @@ struct IntegratorOptions {
   double theta = 0.55;        // implicit_contact: implicitness θ ∈ [0.5, 1] (0.5: trapezoid,
                               // order 2, undamped stiff modes; 1: backward Euler) [-]
   double newton_tol = 1e-2;  // implicit_contact: the corrections stop once |Δv|∞ ≤ newton_tol (1 + |v₁|∞) [-]
+  int jacobian_age = 5;  // implicit_contact: a factored Jacobian serves the evaluations of at most this
+                         // many later steps while the contact branches stay (0: fresh at every one) [-]
 };
 // Throws std::invalid_argument naming the option and the value.
 void validate(const IntegratorOptions& o);
@@ -138,6 +149,7 @@ struct IntegratorStats {
   std::uint64_t evaluations = 0;  // acceleration / implicit-term evaluations
   std::uint64_t newton_unconverged = 0;  // implicit_contact steps that used every correction
                                          // without reaching |Δv|∞ ≤ newton_tol (1 + |v|∞)
+  std::uint64_t jacobians = 0;  // implicit_contact: Jacobian evaluations and factorizations
   double h_last = 0.0;            // last step size [s]
 };
 
@@ -178,6 +190,10 @@ class Integrator {
   VectorXd v1_, q1_;
   Eigen::PartialPivLU<MatrixXd> lu_;
   StructuredLU slu_;  // implicit_contact's solves
+  bool slu_valid_ = false;    // slu_ holds a factored Jacobian for the step h_slu_ …
+  double h_slu_ = 0.0;
+  int jac_age_ = 0;           // … made jac_age_ steps ago …
+  std::uint64_t sig_slu_ = 0; // … with these contact branches (ImplicitTerms::signature)
 };
 
 }  // namespace pedalwave::model

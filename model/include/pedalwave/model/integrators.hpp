@@ -119,6 +119,14 @@ enum class Method : std::uint8_t {
 // branch changes take two or three; two corrections on every step (the earlier default) are both
 // costlier and less accurate on the stairs (README "An accurate step at 1 ms"). The linear solves
 // eliminate the diagonal motor block first (StructuredLU, ImplicitTerms::n_diag).
+// The Jacobian is kept (IntegratorOptions::jacobian_age, default 5): a factored
+// M − θh (D_v + θh D_q) serves the predictors and corrections of the next steps as long as the
+// contacts carrying force and their friction branches (ImplicitTerms::signature) are those it was
+// made with, for at most jacobian_age steps and the same h; the evaluations in between skip the
+// contact Jacobians (ImplicitTerms::with_jacobian). An evaluation whose branches differ is repeated
+// with the Jacobian, which is factored and kept from then on — so every kink of the force law is
+// crossed by a Newton correction with a fresh Jacobian, as before. jacobian_age = 0: a fresh
+// Jacobian at every evaluation (the scheme before; the same results bit for bit).
 std::string_view to_string(Method m);
 // Parses "euler", "semi_implicit_euler", "implicit_velocity", "rk4", "dopri45",
 // "implicit_contact"; throws
@@ -149,7 +157,7 @@ struct IntegratorStats {
   std::uint64_t evaluations = 0;  // acceleration / implicit-term evaluations
   std::uint64_t newton_unconverged = 0;  // implicit_contact steps that used every correction
                                          // without reaching |Δv|∞ ≤ newton_tol (1 + |v|∞)
-  std::uint64_t jacobians = 0;  // implicit_contact: Jacobian evaluations and factorizations
+  std::uint64_t jacobians = 0;  // implicit_contact: Jacobians evaluated and factored
   double h_last = 0.0;            // last step size [s]
 };
 

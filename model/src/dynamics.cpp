@@ -39,9 +39,8 @@ void cholesky_solve(const MatrixXd& L, int n, Eigen::Ref<VectorXd> b) {
   }
 }
 
-}  // namespace
-
-void factor_mass(const Model& m, Data& d) {
+// d.Mz = Tᵀ Mz T, the body block of M without the rotors' spin (at the last update_kinematics).
+void assemble_body_mass(const Model& m, Data& d) {
   const int N = m.N();
   const double I_l = m.params().I_l;
   auto& Mz = d.Mz;
@@ -62,13 +61,23 @@ void factor_mass(const Model& m, Data& d) {
   // q_1 coordinates: Tᵀ Mz T.
   apply_T_right(N, Mz);
   apply_Tt_left(N, Mz);
+}
+
+}  // namespace
+
+void factor_mass(const Model& m, Data& d) {
+  assemble_body_mass(m, d);
+  auto& Mz = d.Mz;
   // Factor the Schur complement of the (constant, diagonal) motor block: Tᵀ Mz T + spin_schur.
   d.chol = Mz + m.spin_schur();
   d.mass_valid = cholesky_in_place(d.chol, m.nq1());
 }
 
-void compute_mass_matrix(const Model& m, Data& d) {
-  factor_mass(m, d);
+void compute_mass_matrix(const Model& m, Data& d, bool factor) {
+  if (factor)
+    factor_mass(m, d);
+  else
+    assemble_body_mass(m, d);
   // The rotors' spin inertia I_r Lᵀ L on all of q.
   d.M = m.M_spin();
   d.M.topLeftCorner(m.nq1(), m.nq1()) += d.Mz;

@@ -51,6 +51,8 @@ void validate(const IntegratorOptions& o) {
   if (o.newton_iterations < 0 || o.newton_iterations > 50)
     bad("newton_iterations", o.newton_iterations, "must be 0 … 50");
   if (!(o.theta >= 0.5 && o.theta <= 1.0)) bad("theta", o.theta, "must be in [0.5, 1]");
+  if (o.jacobian_age < 0 || o.jacobian_age > 1000)
+    bad("jacobian_age", o.jacobian_age, "must be 0 … 1000 (steps)");
   if (is_adaptive(o.method)) {
     if (!(o.rtol > 0)) bad("rtol", o.rtol, "must be > 0");
     if (!(o.atol > 0)) bad("atol", o.atol, "must be > 0");
@@ -248,40 +250,64 @@ StepStatus Integrator::step(System& sys, double t, double h, VectorXd& q, Vector
 
 // The θ-trapezoid with Newton corrections (integrators.hpp). Buffers: ick_ at (q₀, v₀) — its M,
 // F are needed by every correction —, imp1_ at the iterate, v1_ the iterate, q1_ its position,
-// dv_ the residual / correction. No allocation.
+// dv_ the residual / correction; slu_ the factored Jacobian M − θh (D_v + θh D_q), kept across
+// steps (jacobian_age) with the contact signature sig_slu_ it was made with. No allocation.
 StepStatus Integrator::step_implicit_contact(System& sys, double t, double h, VectorXd& q,
                                              VectorXd& v) {
   const double th = o_.theta, a = th * h;  // and θ²h² = a · θh
-  ++stats_.evaluations;
-  // Both evaluations want only M − θh (D_v + θh D_q) (ImplicitTerms::dq_in_dv); the start's also
+  const bool always = o_.jacobian_age == 0;  // a fresh Jacobian at every evaluation
+  // The kept factorization expires after jacobian_age steps, or when h changed.
+  if (always || h != h_slu_ || ++jac_age_ > o_.jacobian_age) slu_valid_ = false;
+  // Every evaluation wants only M − θh (D_v + θh D_q) (ImplicitTerms::dq_in_dv); the start's also
   // D_q v for the predictor and M(q₀) for every correction.
   ick_.dq_in_dv = imp1_.dq_in_dv = a;
   imp1_.with_mass = false;
-  if (!sys.implicit_terms(t, q, v, ick_)) return StepStatus::kEvalFailed;
-  // Predictor: linearized at the start of the step, (M − θh D_v − θ²h² D_q) Δv = h (F + θh D_q v).
-  slu_.matrix() = ick_.M - a * ick_.dFdv;
-  if (!slu_.factor(ick_.n_diag)) return StepStatus::kNonFinite;
+  ick_.check_mass = imp1_.check_mass = false;  // a singular M shows as a zero pivot of slu_
+  // Evaluates (q, v) into `out`, with the Jacobian when asked or when the contacts' branches
+  // differ from those of the kept factorization (then twice: the first without it).
+  auto evaluate = [&](double te, const VectorXd& qe, const VectorXd& ve, ImplicitTerms& out, bool fresh) {
+    ++stats_.evaluations;
+    out.with_jacobian = fresh;
+    if (!sys.implicit_terms(te, qe, ve, out)) return false;
+    if (fresh || out.signature == sig_slu_) return true;
+    ++stats_.evaluations;
+    out.with_jacobian = true;
+    return sys.implicit_terms(te, qe, ve, out);
+  };
+  auto factor = [&](const ImplicitTerms& at) {
+    ++stats_.jacobians;
+    slu_.matrix() = ick_.M - a * at.dFdv;  // dFdv holds ∂F/∂v + θh ∂F/∂q (dq_in_dv)
+    slu_valid_ = slu_.factor(at.n_diag);
+    sig_slu_ = at.signature;
+    h_slu_ = h;
+    jac_age_ = 0;
+    return slu_valid_;
+  };
+  if (!evaluate(t, q, v, ick_, !slu_valid_)) return StepStatus::kEvalFailed;
+  if (ick_.with_jacobian && !factor(ick_)) return StepStatus::kNonFinite;
+  // Predictor: linearized at the start of the step, (M − θh D_v − θ²h² D_q) Δv = h (F + θh D_q v)
+  // (with a kept Jacobian: from a recent step, the same contact branches).
   dv_ = h * (ick_.F + a * ick_.dFdq_v);
   slu_.solve(dv_);
   v1_ = v + dv_;
   const double tol = o_.newton_tol;
   imp1_.v_start = &v;
   bool converged = o_.newton_iterations == 0;
+  StepStatus status = StepStatus::kOk;
   for (int it = 0; it < o_.newton_iterations; ++it) {
     q1_ = q + ((1 - th) * h) * v + a * v1_;
-    ++stats_.evaluations;
-    if (!sys.implicit_terms(t + h, q1_, v1_, imp1_)) {
-      imp1_.v_start = nullptr;
-      return StepStatus::kEvalFailed;
+    if (!evaluate(t + h, q1_, v1_, imp1_, always)) {
+      status = StepStatus::kEvalFailed;
+      break;
     }
-    // Residual G(v₁) = M₀ (v₁ − v₀) − h [(1−θ) F₀ + θ F₁], Jacobian M₀ − θh D_v − θ²h² D_q at (q₁, v₁).
+    // Residual G(v₁) = M₀ (v₁ − v₀) − h [(1−θ) F₀ + θ F₁]; Jacobian M₀ − θh D_v − θ²h² D_q, fresh
+    // at (q₁, v₁) when evaluated there, else the kept one (same contact branches).
     vtmp_ = v1_ - v;
     dv_.noalias() = ick_.M * vtmp_;
     dv_ -= ((1 - th) * h) * ick_.F + a * imp1_.F;
-    slu_.matrix() = ick_.M - a * imp1_.dFdv;  // dFdv holds ∂F/∂v + θh ∂F/∂q (dq_in_dv)
-    if (!slu_.factor(imp1_.n_diag)) {
-      imp1_.v_start = nullptr;
-      return StepStatus::kNonFinite;
+    if (imp1_.with_jacobian && !factor(imp1_)) {
+      status = StepStatus::kNonFinite;
+      break;
     }
     slu_.solve(dv_);
     v1_ -= dv_;
@@ -292,6 +318,7 @@ StepStatus Integrator::step_implicit_contact(System& sys, double t, double h, Ve
     }
   }
   imp1_.v_start = nullptr;
+  if (status != StepStatus::kOk) return status;
   if (!converged) ++stats_.newton_unconverged;
   q += ((1 - th) * h) * v + a * v1_;
   v = v1_;

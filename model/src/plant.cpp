@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace pedalwave::model {
 
@@ -186,7 +187,17 @@ void Plant::add_contact(int k_a, int k_b, double s, const Vec2& n, double depth,
     report->f_normal(k) += fN;
     report->f_tangent(k) += fT;
   }
-  if (jac && fN > 0) {
+  Vec2 fq;
+  if (jac && fN > 0 && add_signature(k_a, k_b, dfdv, fT, n, vel, fN, jac, fq)) {
+    if (fq.allFinite()) {  // D_q v = −k (J_n v) Jᵀ(n + (f_T/f_N) t): a point force
+      if (s > 0) {
+        add_point_force(m, data_, k_a, (1 - s) * fq, jac->dFdq_v);
+        add_point_force(m, data_, k_b, s * fq, jac->dFdq_v);
+      } else {
+        add_point_force(m, data_, k_a, fq, jac->dFdq_v);
+      }
+    }
+  } else if (jac && fN > 0) {
     // Stiff terms for the implicit scheme: −k JnᵀJn on q, −d JnᵀJn + ∂f_T/∂v_t JtᵀJt on v.
     point_jacobian(m, data_, k_a, Ja_);
     if (s > 0) {
@@ -195,6 +206,23 @@ void Plant::add_contact(int k_a, int k_b, double s, const Vec2& n, double depth,
     }
     add_contact_jacobian(n, fN, fT, dfdv, vt, mu, with_friction, v, jac);
   }
+}
+
+bool Plant::add_signature(int k_a, int k_b, double dfdv, double fT, const Vec2& n, const Vec2& vel,
+                          double fN, ImplicitTerms* jac, Vec2& fq) const {
+  // The contact and its friction branch: 1 on the slope of the law (stick band, tanh, stick
+  // spring), 2 or 3 sliding (or no friction) with f_T > 0 or ≤ 0.
+  const int branch = dfdv != 0.0 ? 1 : (fT > 0 ? 2 : 3);
+  jac->signature = jac->signature * 1000003u + static_cast<std::uint64_t>(k_a * 4096 + k_b * 4 + branch);
+  if (jac->with_jacobian) return false;
+  // Without the Jacobian: what D_q v needs (when asked; else NaN), the force
+  // −k (J_n v)(n + (f_T/f_N) t) at the point.
+  const Vec2 t(n.y(), -n.x());
+  if (jac->dq_in_dv > 0 && jac->dFdq_v.size() > 0)
+    fq = (-scene_.ground.k * vel.dot(n)) * (n + (fT / fN) * t);
+  else
+    fq = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());
+  return true;
 }
 
 void Plant::add_contact_jacobian(const Vec2& n, double fN, double fT, double dfdv, double vt, double mu,
@@ -384,7 +412,20 @@ void Plant::add_shape_contact(const ShapePoint& c, const Vec2& n, double depth, 
     report->f_normal(k) += fN;
     report->f_tangent(k) += fT;
   }
-  if (jac && fN > 0) {
+  Vec2 fq;
+  if (jac && fN > 0 && add_signature(c.ka, c.kb, dfdv, fT, n, vel, fN, jac, fq)) {
+    if (fq.allFinite()) {  // D_q v as a force at the contact point (add_contact)
+      if (c.s > 0) {
+        add_point_force(m, data_, c.ka, (1 - c.s) * fq, jac->dFdq_v);
+        add_point_force(m, data_, c.kb, c.s * fq, jac->dFdq_v);
+      } else {
+        add_point_force(m, data_, c.ka, fq, jac->dFdq_v);
+      }
+      const double tq = c.r.x() * fq.y() - c.r.y() * fq.x();
+      if (c.w < 1) add_link_torque(m, c.la, (1 - c.w) * tq, jac->dFdq_v);
+      if (c.w > 0) add_link_torque(m, c.lb, c.w * tq, jac->dFdq_v);
+    }
+  } else if (jac && fN > 0) {
     point_jacobian(m, data_, c.ka, Ja_);
     if (c.s > 0) {
       point_jacobian(m, data_, c.kb, Jb_);
@@ -638,16 +679,19 @@ bool Plant::implicit_terms(double, const VectorXd& q, const VectorXd& v, Implici
   const double s = out.dq_in_dv;
   MatrixXd& Dq = s > 0 ? out.dFdv : out.dFdq;
   const double sq = s > 0 ? s : 1.0;
-  if (!(s > 0)) out.dFdq.setZero();
-  out.dFdv.setZero();
+  const bool jac = out.with_jacobian;
+  if (jac && !(s > 0)) out.dFdq.setZero();
+  if (jac) out.dFdv.setZero();
   const bool dq_v = s > 0 && out.dFdq_v.size() > 0;
   if (dq_v) out.dFdq_v.setZero();
   Q_.setZero();
+  // Without the Jacobian the contacts still run their Jacobian block when D_q v is asked for.
+  out.signature = 0;
   contact_forces(q, v, Q_, &out, nullptr);
-  fault_forces(q, Q_, &out);
+  fault_forces(q, Q_, jac ? &out : nullptr);
   if (out.with_mass) {
-    compute_mass_matrix(m, data_);
-    if (!data_.mass_valid) return false;
+    compute_mass_matrix(m, data_, out.check_mass);
+    if (out.check_mass && !data_.mass_valid) return false;
     out.M = data_.M;
   }
   compute_bias(m, data_, q);
@@ -660,10 +704,12 @@ bool Plant::implicit_terms(double, const VectorXd& q, const VectorXd& v, Implici
     for (int j = 0; j < m.joints(); ++j) {
       const double K = sq * m.K()(j);
       const int a = m.i_alpha(j), b = m.i_beta(j);
-      Dq(a, a) -= K;
-      Dq(b, b) -= K;
-      Dq(a, b) += K;
-      Dq(b, a) += K;
+      if (jac) {
+        Dq(a, a) -= K;
+        Dq(b, b) -= K;
+        Dq(a, b) += K;
+        Dq(b, a) += K;
+      }
       if (dq_v) {  // the spring and its injected change (fault_forces): −K_j (1 + (scale − 1)) …
         const double Kt = faults_.spring_scale(j) * m.K()(j), dv = v(b) - v(a);
         out.dFdq_v(a) += Kt * dv;
@@ -683,11 +729,13 @@ bool Plant::implicit_terms(double, const VectorXd& q, const VectorXd& v, Implici
     const double law = gain == 1.0 ? u_(j) + bj * v(r) : (u_(j) + bj * v(r)) / gain;
     const bool saturated = lim > 0 && gain != 0.0 && std::abs(law) >= lim;
     if (!input_.torque_off && !saturated) {
-      Dq(r, r) -= sq * gain * input_.kp(j);
       if (dq_v) out.dFdq_v(r) -= gain * input_.kp(j) * v(r);
-      out.dFdv(r, r) -= gain * input_.kd(j);
+      if (jac) {
+        Dq(r, r) -= sq * gain * input_.kp(j);
+        out.dFdv(r, r) -= gain * input_.kd(j);
+      }
     }
-    out.dFdv(r, r) -= bj;
+    if (jac) out.dFdv(r, r) -= bj;
   }
   return true;
 }

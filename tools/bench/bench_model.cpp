@@ -8,7 +8,8 @@
 //                                             the link-shape rows (…/capsule, …/box_links) against
 //                                             the segment row they replace ("over")
 //   implicit_terms/<effects>                  Plant::implicit_terms (velocity-implicit Jacobians)
-//   integrator_step/<method>                  one step of each integrator on the flat scene
+//   integrator_step/<method>                  one step of each integrator on the flat scene (and
+//                                             implicit_contact_fresh: jacobian_age 0)
 // After the runs it prints (stdout) the cost-versus-N table of both solvers with the exponent fitted
 // to the N = 16 … 64 points, the effect table, and the checks of the targets: ≤ 2 µs for one flexible
 // N = 6 forward-dynamics evaluation; the recursive solver (issue 19) at N = 64 ≤ 10 µs, cost(64) /
@@ -209,11 +210,12 @@ void bm_implicit_terms(benchmark::State& st, const Scene& scene) {
 
 // ---- integrators --------------------------------------------------------------------------------
 
-void bm_integrator_step(benchmark::State& st, Method method) {
+void bm_integrator_step(benchmark::State& st, Method method, int jacobian_age) {
   PlantFixture f(shipped("flat_high_friction"));
   IntegratorOptions o;
   o.method = method;
   o.h = 1e-4;
+  if (jacobian_age >= 0) o.jacobian_age = jacobian_age;
   Integrator integ(f.plant.nq(), o);
   VectorXd q = f.q, v = f.v;
   for (auto _ : st) {
@@ -341,6 +343,7 @@ void print_summary(const Collector& c, const std::vector<EffectCase>& effects) {
     const std::string name(pedalwave::model::to_string(m));
     integ.add_row({name, us(c.ns("integrator_step/" + name))});
   }
+  integ.add_row({"implicit_contact_fresh (jacobian_age 0)", us(c.ns("integrator_step/implicit_contact_fresh"))});
   std::cout << integ.to_text();
 }
 
@@ -375,8 +378,12 @@ int main(int argc, char** argv) {
                    Method::kRK4, Method::kDormandPrince45, Method::kImplicitContact})
     benchmark::RegisterBenchmark(
         ("integrator_step/" + std::string(pedalwave::model::to_string(m))).c_str(),
-        bm_integrator_step, m)
+        bm_integrator_step, m, -1)
         ->Unit(benchmark::kNanosecond);
+  // implicit_contact with a fresh Jacobian at every evaluation (the scheme before jacobian_age).
+  benchmark::RegisterBenchmark("integrator_step/implicit_contact_fresh", bm_integrator_step,
+                               Method::kImplicitContact, 0)
+      ->Unit(benchmark::kNanosecond);
 
   Collector collector;
   benchmark::RunSpecifiedBenchmarks(&collector);

@@ -140,6 +140,7 @@ struct Options {
   bool quick = false;
   bool fidelity = false;
   bool quiet = false;
+  int jacobian_age = model::IntegratorOptions{}.jacobian_age;  // implicit_contact's runs
   pedalwave::campaign::Options campaign;
 };
 
@@ -214,6 +215,7 @@ int work_precision(const Options& opt) {
         j.scene = s;
         j.spec = b;
         j.spec.integ = {.method = m, .h = h};
+        j.spec.integ.jacobian_age = opt.jacobian_age;
         runs.push_back(j);
       }
     }
@@ -240,6 +242,7 @@ int work_precision(const Options& opt) {
     c << "\nmethod ids:";
     for (model::Method m : kMethods) c << ' ' << static_cast<int>(m) << '=' << model::to_string(m);
     c << "\nstatus: 0 ok, 1 unstable (NaN or blow-up), 2 failed; errors are NaN unless ok";
+    c << "\nimplicit_contact jacobian_age: " << opt.jacobian_age;
     csv.comment(c.str());
   }
   std::ostringstream summary;
@@ -442,6 +445,9 @@ int main(int argc, char** argv) {
   app.add_flag("--quick", opt.quick, "a few points per method (smoke test)");
   app.add_flag("--fidelity", opt.fidelity, "model-fidelity study instead of the work-precision study");
   app.add_flag("--quiet", opt.quiet, "no progress bar");
+  app.add_option("--jacobian-age", opt.jacobian_age,
+                 "implicit_contact: most later steps a factored Jacobian serves (0: fresh at every evaluation)")
+      ->check(CLI::Range(0, 1000))->capture_default_str();
   // The runs as a campaign: --backend local|slurm and the Slurm options (default campaign folder:
   // <--out>/campaign).
   pedalwave::campaign::cli::CliOptions camp;

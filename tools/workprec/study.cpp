@@ -166,6 +166,7 @@ std::string encode_spec(const RunSpec& spec, const std::string& scene_name, cons
       .put("atol", spec.integ.atol)
       .put("h_min", spec.integ.h_min)
       .put("h_max", spec.integ.h_max)
+      .put_int("jacobian_age", spec.integ.jacobian_age)
       .put_int("max_evaluations", static_cast<long long>(spec.max_evaluations))
       .put_int("record", record ? 1 : 0)
       .put_int("repeats", repeats);
@@ -192,6 +193,10 @@ std::string run_line(const std::string& line) {
   s.integ.atol = r.number("atol");
   s.integ.h_min = r.number("h_min");
   s.integ.h_max = r.number("h_max");
+  const long long age = r.integer("jacobian_age");
+  if (age < 0 || age > 1000)
+    throw std::invalid_argument("run specification: jacobian_age = " + std::to_string(age) + ": expected 0 … 1000");
+  s.integ.jacobian_age = static_cast<int>(age);
   s.max_evaluations = static_cast<std::uint64_t>(r.integer("max_evaluations"));
   const bool record = r.integer("record") != 0;
   const long long repeats = r.integer("repeats");

@@ -57,6 +57,15 @@ TEST(WorkprecCampaign, ClosedLoopWalkThroughItsLineIsTheDirectRun) {
   check("flat_high_friction.yaml", 0, true, {.method = model::Method::kImplicitVelocity, .h = 5e-4});
 }
 
+// implicit_contact's jacobian_age travels in the line (a non-default age; --jacobian-age).
+TEST(WorkprecCampaign, ImplicitContactsJacobianAgeThroughItsLine) {
+  model::IntegratorOptions o{.method = model::Method::kImplicitContact, .h = 1e-3};
+  o.jacobian_age = 0;
+  check("stair.yaml", 0, true, o);
+  o.jacobian_age = 2;
+  check("stair.yaml", 0, true, o);
+}
+
 TEST(WorkprecCampaign, OpenLoopFallAndAdaptiveStepThroughTheirLines) {
   check("free_fall.yaml", 0, false,
         {.method = model::Method::kDormandPrince45, .h = 1e-5, .rtol = 1e-6, .atol = 1e-8, .h_min = 1e-15, .h_max = 1e-3});

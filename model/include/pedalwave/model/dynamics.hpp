@@ -22,7 +22,8 @@ namespace pedalwave::model {
 void factor_mass(const Model& m, Data& d);
 
 // factor_mass, and the whole nq×nq d.M assembled (energies, implicit integrators, linearization).
-void compute_mass_matrix(const Model& m, Data& d);
+// factor = false: d.M and d.Mz only (no Cholesky; d.chol and d.mass_valid untouched).
+void compute_mass_matrix(const Model& m, Data& d, bool factor = true);
 
 // d.coriolis, d.gravity, d.spring and d.bias at (q, q̇) (after update_kinematics with q̇).
 void compute_bias(const Model& m, Data& d, const Eigen::Ref<const VectorXd>& q);

@@ -37,7 +37,16 @@ struct ImplicitTerms {
   // M − θh (∂F/∂v + θh ∂F/∂q)).
   // With dq_in_dv > 0 and dFdq_v sized nq, also dFdq_v = ∂F/∂q · v at the evaluated v (what the
   // predictor's right-hand side needs of ∂F/∂q); left empty, it is not computed.
+  // with_jacobian false leaves dFdq and dFdv untouched (F, M and dFdq_v as asked): what
+  // implicit_contact's evaluations need while they reuse a factored Jacobian (jacobian_age).
+  // check_mass false assembles M without its Cholesky factorization (mass_valid not checked: the
+  // caller's own factorization reports a singular matrix).
   bool with_mass = true;
+  bool with_jacobian = true;
+  bool check_mass = true;
+  // Written by the plant: a hash of the contacts carrying force and each one's friction branch
+  // (stick band or sliding either way); equal signatures, the same branches of the force law.
+  std::uint64_t signature = 0;
   double dq_in_dv = 0.0;
   VectorXd dFdq_v = VectorXd();
 };
@@ -110,6 +119,14 @@ enum class Method : std::uint8_t {
 // branch changes take two or three; two corrections on every step (the earlier default) are both
 // costlier and less accurate on the stairs (README "An accurate step at 1 ms"). The linear solves
 // eliminate the diagonal motor block first (StructuredLU, ImplicitTerms::n_diag).
+// The Jacobian is kept (IntegratorOptions::jacobian_age, default 5): a factored
+// M − θh (D_v + θh D_q) serves the predictors and corrections of the next steps as long as the
+// contacts carrying force and their friction branches (ImplicitTerms::signature) are those it was
+// made with, for at most jacobian_age steps and the same h; the evaluations in between skip the
+// contact Jacobians (ImplicitTerms::with_jacobian). An evaluation whose branches differ is repeated
+// with the Jacobian, which is factored and kept from then on — so every kink of the force law is
+// crossed by a Newton correction with a fresh Jacobian, as before. jacobian_age = 0: a fresh
+// Jacobian at every evaluation (the scheme before; the same results bit for bit).
 std::string_view to_string(Method m);
 // Parses "euler", "semi_implicit_euler", "implicit_velocity", "rk4", "dopri45",
 // "implicit_contact"; throws
@@ -128,6 +145,8 @@ struct IntegratorOptions {
   double theta = 0.55;        // implicit_contact: implicitness θ ∈ [0.5, 1] (0.5: trapezoid,
                               // order 2, undamped stiff modes; 1: backward Euler) [-]
   double newton_tol = 1e-2;  // implicit_contact: the corrections stop once |Δv|∞ ≤ newton_tol (1 + |v₁|∞) [-]
+  int jacobian_age = 5;  // implicit_contact: a factored Jacobian serves the evaluations of at most this
+                         // many later steps while the contact branches stay (0: fresh at every one) [-]
 };
 // Throws std::invalid_argument naming the option and the value.
 void validate(const IntegratorOptions& o);
@@ -138,6 +157,7 @@ struct IntegratorStats {
   std::uint64_t evaluations = 0;  // acceleration / implicit-term evaluations
   std::uint64_t newton_unconverged = 0;  // implicit_contact steps that used every correction
                                          // without reaching |Δv|∞ ≤ newton_tol (1 + |v|∞)
+  std::uint64_t jacobians = 0;  // implicit_contact: Jacobians evaluated and factored
   double h_last = 0.0;            // last step size [s]
 };
 
@@ -178,6 +198,10 @@ class Integrator {
   VectorXd v1_, q1_;
   Eigen::PartialPivLU<MatrixXd> lu_;
   StructuredLU slu_;  // implicit_contact's solves
+  bool slu_valid_ = false;    // slu_ holds a factored Jacobian for the step h_slu_ …
+  double h_slu_ = 0.0;
+  int jac_age_ = 0;           // … made jac_age_ steps ago …
+  std::uint64_t sig_slu_ = 0; // … with these contact branches (ImplicitTerms::signature)
 };
 
 }  // namespace pedalwave::model

@@ -131,6 +131,11 @@ class Plant final : public System {
   void add_contact(int k_a, int k_b, double s, const Vec2& n, double depth, double mu,
                    const VectorXd& v, double xt, int slot, Eigen::Ref<VectorXd> Q,
                    ImplicitTerms* jac, ContactReport* report);
+  // Adds the contact (body points k_a, k_b, its friction branch) to jac->signature; without the
+  // Jacobian (jac->with_jacobian false) returns true with fq the point force whose generalized
+  // force is the contact's part of D_q v (NaN when jac does not ask for D_q v).
+  bool add_signature(int k_a, int k_b, double dfdv, double fT, const Vec2& n, const Vec2& vel, double fN,
+                     ImplicitTerms* jac, Vec2& fq) const;
   // The contact's stiff terms on jac from Ja_ (the contact point's Jacobian, 2×nq).
   void add_contact_jacobian(const Vec2& n, double fN, double fT, double dfdv, double vt, double mu,
                             bool with_friction, const VectorXd& v, ImplicitTerms* jac);

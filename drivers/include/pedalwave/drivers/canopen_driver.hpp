@@ -20,7 +20,10 @@
 // answers the previous SYNC: a late answer. As the own protocol does (late_sample.hpp, PROTOCOL.md
 // §4), a joint without a fresh pair this cycle gets its late pair as an older sample at that
 // SYNC's time (kStatusLate, counted in late_used) — the values are exact, only older — if no
-// newer sample was handed out; a joint with neither is missing.
+// newer sample was handed out; a joint with neither is missing. "Before the next SYNC" holds for
+// a late loop too: no SYNC goes out while the previous one's window is open (waited out before the
+// read's deadline, or this read sends none: syncs_held()), and with the SYNC's echo a sample's
+// time is when the SYNC was on the bus and a TPDO received before the echo is the previous one's.
 //
 // write() sends RPDOs whose controlword is enable operation (0x0F), or disable operation (0x07,
 // the drive's output off) for Command::torque_off; the drives act on them at the next SYNC

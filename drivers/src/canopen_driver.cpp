@@ -641,22 +641,27 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
       }
     }
   }
-  if (hold) {
-    // Everything this read receives answers the previous SYNC (or an older one).
-    auto late_complete = [&]() noexcept {
+  // Receives until every joint has both TPDOs in `t1`, `t2` (or the deadline); `before_sync`: all
+  // of it answers the previous SYNC.
+  auto gather = [&](const std::array<bool, kMaxJoints>& t1, const std::array<bool, kMaxJoints>& t2,
+                    bool before_sync) noexcept {
+    auto all_in = [&] {
       for (int j = 0; j < joints_; ++j)
-        if (!late1_[static_cast<std::size_t>(j)] || !late2_[static_cast<std::size_t>(j)]) return false;
+        if (!t1[static_cast<std::size_t>(j)] || !t2[static_cast<std::size_t>(j)]) return false;
       return true;
     };
-    while (!late_complete() && !peer_closed_) {
+    while (!all_in() && !peer_closed_) {
       const std::int64_t remaining = deadline_ns - detail::monotonic_ns();
       if (remaining <= 0) break;
       pollfd p{fd_, POLLIN, 0};
       const timespec ts = detail::to_timespec(remaining);
       const int r = ::ppoll(&p, 1, &ts, nullptr);
       if (r < 0 && errno != EINTR) break;
-      if (r > 0) drain(rt_off, true);
+      if (r > 0) drain(rt_off, before_sync);
     }
+  };
+  if (hold) {
+    gather(late1_, late2_, true);  // everything answers the previous SYNC (or an older one)
     return finish_read(out, Tx::kOk);
   }
   // The RPDOs written last cycle act from this SYNC on; the sample this SYNC takes is the end of
@@ -681,20 +686,7 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   // for it: on a loaded machine the send itself took up to 20 ms (the vcan VM beside a compiler),
   // and the drives sampled that much later than the lower bound above.
   echo_pending_ = echo_ && tx == Tx::kOk;
-  auto complete = [&]() noexcept {
-    for (int j = 0; j < joints_; ++j)
-      if (!got1_[static_cast<std::size_t>(j)] || !got2_[static_cast<std::size_t>(j)]) return false;
-    return true;
-  };
-  while (!complete() && !peer_closed_) {
-    const std::int64_t remaining = deadline_ns - detail::monotonic_ns();
-    if (remaining <= 0) break;
-    pollfd p{fd_, POLLIN, 0};
-    const timespec ts = detail::to_timespec(remaining);
-    const int r = ::ppoll(&p, 1, &ts, nullptr);
-    if (r < 0 && errno != EINTR) break;
-    if (r > 0) drain(rt_off, false);
-  }
+  gather(got1_, got2_, false);
   if (echo_pending_ && counters_.rx_dropped != rx_dropped_before) {
     // The echo may be among the frames the full receive queue lost: which SYNC the answers
     // received answer is then unknown; none is used.

@@ -650,15 +650,8 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
         if (!t1[static_cast<std::size_t>(j)] || !t2[static_cast<std::size_t>(j)]) return false;
       return true;
     };
-    while (!all_in() && !peer_closed_) {
-      const std::int64_t remaining = deadline_ns - detail::monotonic_ns();
-      if (remaining <= 0) break;
-      pollfd p{fd_, POLLIN, 0};
-      const timespec ts = detail::to_timespec(remaining);
-      const int r = ::ppoll(&p, 1, &ts, nullptr);
-      if (r < 0 && errno != EINTR) break;
-      if (r > 0) drain(rt_off, before_sync);
-    }
+    detail::poll_until(fd_, deadline_ns, [&] { return peer_closed_ || all_in(); },
+                       [&] { drain(rt_off, before_sync); });
   };
   if (hold) {
     gather(late1_, late2_, true);  // everything answers the previous SYNC (or an older one)

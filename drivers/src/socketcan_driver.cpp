@@ -385,15 +385,7 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
       if (!have_timing_[static_cast<std::size_t>(j)]) return false;
     return true;
   };
-  while (!complete() && !peer_closed_) {
-    const std::int64_t remaining = deadline_ns - detail::monotonic_ns();
-    if (remaining <= 0) break;
-    pollfd p{fd_, POLLIN, 0};
-    const timespec ts = detail::to_timespec(remaining);
-    const int r = ::ppoll(&p, 1, &ts, nullptr);
-    if (r < 0 && errno != EINTR) break;
-    if (r > 0) drain(rt_off);
-  }
+  detail::poll_until(fd_, deadline_ns, [&] { return peer_closed_ || complete(); }, [&] { drain(rt_off); });
 
   out.joints = joints_;
   out.seq = cycle_;

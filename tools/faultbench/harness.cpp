@@ -97,7 +97,7 @@ model::StepStatus FaultLoop::step() {
   t_ = static_cast<double>(cycle_) * opt_.period;
   inj_.read(0, 0, fb_);
   sample_.joints = fb_.joints;
-  verdict_ = obs_.observe(fb_, cmd_, t_, opt_.period, sample_);
+  verdict_ = stage_->observe(fb_, cmd_, t_, opt_.period, sample_);
   ctl_.update(t_, opt_.period, control::measurement_from(fb_), state_, out_);
   ctl_.fill_command(out_, cmd_);
   cmd_.torque_off = false;

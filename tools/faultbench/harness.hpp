@@ -54,6 +54,8 @@ class FaultLoop {
   drivers::FaultInjectingDriver& injector() { return inj_; }
   drivers::SimDriver& sim() { return sim_; }
   observer::RuntimeObserver& observer() { return obs_; }
+  // step() asks `o` instead of observer() from now on (e.g. a RecordingObserver wrapping it).
+  void observe_through(runtime::Observer& o) { stage_ = &o; }
   const runtime::Verdict& verdict() const { return verdict_; }
   const runtime::CycleSample& sample() const { return sample_; }
   const drivers::Feedback& feedback() const { return fb_; }
@@ -68,6 +70,7 @@ class FaultLoop {
   control::GaitController ctl_;
   control::GaitControllerState state_;
   observer::RuntimeObserver obs_;
+  runtime::Observer* stage_ = &obs_;
   control::ControlOutput out_{};
   drivers::Feedback fb_{};
   drivers::Command cmd_{};

@@ -44,6 +44,7 @@
 #include "pedalwave/telemetry/dds_telemetry.hpp"
 #include "pedalwave/telemetry/mcap_recorder.hpp"
 #endif
+#include "pedalwave/observer/input_log.hpp"
 #include "pedalwave/observer/runtime_observer.hpp"
 
 namespace pedalwave::app {
@@ -240,13 +241,12 @@ double observer_threshold(const config::DaemonConfig& cfg) {
   return cfg.observer ? observer::ObserverParams{}.r_threshold : NAN;
 }
 
-std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg,
-                                                 const drivers::Driver* driver) {
-  if (!cfg.observer) return nullptr;
+// The daemon's observer parameters for a driver that declares `spec`.
+observer::ObserverParams observer_params(const config::DaemonConfig& cfg, const drivers::FeedbackSpec& spec) {
   observer::ObserverParams op;
   // The driver's declared sensor resolution and host-law stale limit: the observer's thresholds
   // are at least what that quantization produces (runtime/observer/README.md §1.3).
-  if (driver) op.feedback = driver->feedback_spec();
+  op.feedback = spec;
   op.robot = cfg.robot;
   if (op.robot.K.empty())  // one stiffness per joint, explicitly
     op.robot.K.assign(static_cast<std::size_t>(op.robot.N - 1), op.robot.K_all);
@@ -259,7 +259,14 @@ std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg
     if (sc.joint_friction_on) op.motor_viscous = sc.joint_friction.motor_viscous;
     if (sc.torque_limit_on) op.u_max = sc.torque_limit.u_max;
   }
-  return std::make_unique<observer::RuntimeObserver>(op);
+  return op;
+}
+
+std::unique_ptr<observer::RuntimeObserver> make_observer(const config::DaemonConfig& cfg,
+                                                         const drivers::Driver* driver) {
+  if (!cfg.observer) return nullptr;
+  return std::make_unique<observer::RuntimeObserver>(
+      observer_params(cfg, driver ? driver->feedback_spec() : drivers::FeedbackSpec{}));
 }
 
 int exit_code(const runtime::RunResult& r) noexcept {
@@ -411,6 +418,17 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   if (!opt.plots_dir.empty())  // likewise the plots' folder: created and written to now
     if (const std::string why = folder_problem(opt.plots_dir); !why.empty())
       throw BadInput("--plots " + opt.plots_dir + ": " + why);
+  if (!opt.observer_log.empty()) {
+    if (!cfg.observer)
+      throw BadInput("--observer-log " + opt.observer_log + ": " + (cfg.source.empty() ? cfg.name : cfg.source) +
+                     " has observer: false: expected a configuration whose observer runs");
+    if (const std::string why = file_problem(opt.observer_log); !why.empty())
+      throw BadInput("--observer-log " + opt.observer_log + ": " + why + ": expected a file that can be written");
+    if (!(opt.observer_log_seconds > 0) || opt.observer_log_seconds > 300)
+      throw BadInput("--observer-log-seconds " + (std::ostringstream() << opt.observer_log_seconds).str() +
+                     ": expected a time in (0, 300] s (the log is kept in memory: ≈ rate × seconds × "
+                     "joints × 120 B)");
+  }
 
   // The walking marker (run_marker.hpp): an earlier run's marker means it did not end in order;
   // this run then does not auto-start — it waits in READY for an operator's start command.
@@ -439,8 +457,22 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   drivers::Driver* driver = opt.driver ? opt.driver : owned.top();
   auto* sim = dynamic_cast<drivers::SimDriver*>(opt.driver ? opt.driver : owned.base.get());
   GaitStage stage(cfg.controller);
-  const std::unique_ptr<runtime::Observer> observer = make_observer(cfg, driver);
-  auto rt = std::make_unique<runtime::Runtime>(rc, *driver, stage, observer.get());
+  const std::unique_ptr<observer::RuntimeObserver> observer = make_observer(cfg, driver);
+  // --observer-log: the observer's inputs of the run's last observer_log_seconds, recorded in
+  // the cycle (allocated here) and written after it.
+  std::unique_ptr<observer::InputLog> observer_log;
+  std::unique_ptr<observer::RecordingObserver> recording_observer;
+  if (observer && !opt.observer_log.empty()) {
+    const double rate = cfg.runtime.rt.rate_hz;
+    const double seconds = cfg.duration > 0 ? std::min(opt.observer_log_seconds, cfg.duration + 1.0)
+                                            : opt.observer_log_seconds;
+    observer_log = std::make_unique<observer::InputLog>(
+        cfg.robot.N - 1, static_cast<std::size_t>(std::ceil(seconds * rate)) + 16);
+    recording_observer = std::make_unique<observer::RecordingObserver>(*observer, *observer_log);
+  }
+  runtime::Observer* const stage_observer =
+      recording_observer ? static_cast<runtime::Observer*>(recording_observer.get()) : observer.get();
+  auto rt = std::make_unique<runtime::Runtime>(rc, *driver, stage, stage_observer);
 
   std::vector<runtime::TelemetrySink*> sinks;
   if (marker) sinks.push_back(marker.get());
@@ -618,6 +650,16 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   }
   if (!opt.plots_dir.empty())
     write_runtime_data(opt.plots_dir, recorder, res.event_log, res.events, observer_threshold(cfg), out);
+  if (observer_log) {
+    try {
+      observer_log->write_csv(opt.observer_log, observer->core().params().feedback);
+      out << "observer log: " << opt.observer_log << " (" << observer_log->size() << " of "
+          << observer_log->recorded() << " cycles; pedalwave_runtime --config … --replay-observer "
+          << opt.observer_log << ")\n";
+    } catch (const std::exception& e) {  // the run is over: say it loudly, lose nothing else
+      std::cerr << "pedalwave_runtime: --observer-log " << opt.observer_log << ": " << e.what() << "\n";
+    }
+  }
   if (sim) {
     sim->stop();
     const drivers::SimRecording& rec = sim->recording();
@@ -670,6 +712,91 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
   }
   if (!opt.plots_dir.empty()) draw_run_figures(opt.plots_dir, out);
   return res;
+}
+
+namespace {
+
+// A joint's status bits, short ("ok" when none).
+std::string status_text(std::uint16_t st) {
+  static constexpr std::pair<std::uint16_t, const char*> kBits[] = {
+      {drivers::kStatusMissing, "missing"}, {drivers::kStatusStale, "stale"},
+      {drivers::kStatusOutOfOrder, "out_of_order"}, {drivers::kStatusChecksum, "checksum"},
+      {drivers::kStatusSaturated, "saturated"}, {drivers::kStatusOverTemp, "over_temp"},
+      {drivers::kStatusEncoderFault, "encoder_fault"}, {drivers::kStatusBusError, "bus_error"},
+      {drivers::kStatusTorqueOff, "torque_off"}, {drivers::kStatusLate, "late"},
+      {drivers::kStatusNoTiming, "no_timing"}, {drivers::kStatusStaleFeedback, "stale_feedback"}};
+  std::string s;
+  for (const auto& [bit, name] : kBits)
+    if (st & bit) s += (s.empty() ? "" : "+") + std::string(name);
+  return s.empty() ? "ok" : s;
+}
+
+// "<class> joint j at t = … s (cycle i)" of a verdict in the log.
+std::string fault_text(const observer::InputLog& log, std::size_t at, runtime::FaultClass f, int joint) {
+  if (at == SIZE_MAX) return "no fault";
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%s%s at t = %.3f s (cycle %llu of the run)", runtime::to_string(f),
+                joint >= 0 ? (" joint " + std::to_string(joint + 1)).c_str() : "", log.cycle(at).t,
+                static_cast<unsigned long long>(log.cycle(at).cycle));
+  return buf;
+}
+
+}  // namespace
+
+int replay_observer(const config::DaemonConfig& cfg, const std::string& log_path, std::ostream& out) {
+  drivers::FeedbackSpec spec;
+  observer::InputLog log(1, 1);
+  try {
+    log = observer::InputLog::read_csv(log_path, &spec);
+  } catch (const std::exception& e) {
+    throw BadInput("--replay-observer: " + std::string(e.what()));
+  }
+  if (log.joints() != cfg.robot.N - 1)
+    throw BadInput("--replay-observer " + log_path + ": " + std::to_string(log.joints()) + " joints, but " +
+                   (cfg.source.empty() ? cfg.name : cfg.source) + " has " + std::to_string(cfg.robot.N - 1) +
+                   ": expected the configuration the log was recorded with");
+  observer::RuntimeObserver obs(observer_params(cfg, spec));
+  const observer::ReplayResult r = observer::replay(log, obs);
+  const std::size_t n = r.cycles;
+  char line[256];
+  std::snprintf(line, sizeof line, "replay: %zu cycles (t = %.3f … %.3f s, cycles %llu … %llu of the run), %d joints, observer of %s\n",
+                n, log.cycle(0).t, log.cycle(n - 1).t, static_cast<unsigned long long>(log.cycle(0).cycle),
+                static_cast<unsigned long long>(log.cycle(n - 1).cycle), log.joints(),
+                (cfg.source.empty() ? cfg.name : cfg.source).c_str());
+  out << line;
+  if (log.cycle(0).cycle != 0)
+    out << "  (the log starts mid-run: the replayed observer starts fresh there, its first seconds are not the live ones)\n";
+  out << "live:   " << fault_text(log, r.live_fault_at, r.live_fault, r.live_joint) << "\n";
+  out << "replay: " << fault_text(log, r.replay_fault_at, r.replay_fault, r.replay_joint);
+  if (r.replay_fault_at != SIZE_MAX) {
+    std::snprintf(line, sizeof line, ", evidence %.4g against %.4g", r.replay_value, r.replay_threshold);
+    out << line;
+  }
+  std::snprintf(line, sizeof line, "\nresiduals: max |replay - live| = %.3g N·m; verdicts differ in %zu of %zu cycles\n",
+                r.max_residual_difference, r.verdicts_differing, n);
+  out << line;
+  // The cycles before the replayed fault, at its joint: what the observer was given.
+  if (r.replay_fault_at != SIZE_MAX && r.replay_joint >= 0) {
+    const int j = r.replay_joint;
+    const std::size_t last = r.replay_fault_at, first = last >= 40 ? last - 40 : 0;
+    out << "the 40 cycles before it, joint " << j + 1
+        << " (sample age = the cycle's stamp − the joint's sample time; applied = cycles between the command it "
+           "applied and the newest):\n";
+    out << "       t [s]   dt [ms]  sample age [ms]  applied  residual [N·m]  status\n";
+    const auto J = static_cast<std::size_t>(log.joints());
+    for (std::size_t i = first; i <= last; ++i) {
+      const observer::InputLog::Cycle& c = log.cycle(i);
+      const observer::InputLog::Joint& x = log.joint(i, j);
+      const double age = x.sample_ns != 0 ? 1e-6 * static_cast<double>(c.stamp_ns - x.sample_ns) : NAN;
+      const long long applied = x.applied_seq >= drivers::kUnknownSeq
+                                    ? -1
+                                    : static_cast<long long>(c.cmd_seq) - static_cast<long long>(x.applied_seq);
+      std::snprintf(line, sizeof line, "  %10.3f  %8.2f  %15.2f  %7lld  %14.5f  %s\n", c.t, 1e3 * c.dt, age, applied,
+                    r.residual[i * J + static_cast<std::size_t>(j)], status_text(x.fb.status).c_str());
+      out << line;
+    }
+  }
+  return r.replay_fault_at != SIZE_MAX ? kExitFault : kExitNormal;
 }
 
 }  // namespace pedalwave::app

@@ -16,6 +16,7 @@
 
 #include "pedalwave/config/daemon.hpp"
 #include "pedalwave/model/integrators.hpp"
+#include "pedalwave/observer/runtime_observer.hpp"
 #include "pedalwave/runtime/run_events.hpp"
 #include "pedalwave/runtime/runtime.hpp"
 
@@ -40,6 +41,10 @@ struct DaemonOptions {
   std::string state_dir{};
   // --domain: the DDS domain, over the file's telemetry.domain_id and ROS_DOMAIN_ID.
   std::optional<std::uint32_t> domain{};
+  // --observer-log: write the observer's inputs of the last observer_log_seconds of the run here
+  // (CSV, observer/input_log.hpp), for --replay-observer; empty = none.
+  std::string observer_log{};
+  double observer_log_seconds = 60.0;
 };
 
 struct DaemonResult {
@@ -102,6 +107,13 @@ std::string file_problem(const std::string& path);
 //    (rate_hz in robot.yaml)"
 std::string config_problem(const config::DaemonConfig& cfg);
 
+// `pedalwave_runtime --replay-observer LOG`: the configuration's observer (with the FeedbackSpec
+// the log names) run over an observer input log (--observer-log); prints what the live and the
+// replayed observer concluded, where they differ, and for the first fault the cycles before it
+// (each joint's status, sample age, the residual). Returns kExitNormal when the replayed observer
+// found no fault, kExitFault when it found one; throws BadInput for a log it cannot read.
+int replay_observer(const config::DaemonConfig& cfg, const std::string& log_path, std::ostream& out);
+
 // `pedalwave_runtime --check`: what can be checked without moving the robot. Each item is one
 // line "ok    <what>" or "FAIL  <what>: <why>".
 struct CheckItem {
@@ -124,7 +136,7 @@ DaemonResult run_daemon(const config::DaemonConfig& cfg, const DaemonOptions& op
 // and torque limit; with `driver`, its declared feedback resolution and stale limit
 // (Driver::feedback_spec(), after its configuration). nullptr when the configuration turns it off
 // or the observer layer is not built.
-std::unique_ptr<runtime::Observer> make_observer(const config::DaemonConfig& cfg,
-                                                 const drivers::Driver* driver = nullptr);
+std::unique_ptr<observer::RuntimeObserver> make_observer(const config::DaemonConfig& cfg,
+                                                         const drivers::Driver* driver = nullptr);
 
 }  // namespace pedalwave::app

@@ -60,6 +60,19 @@ int main(int argc, char** argv) {
   cli.add_option("--domain", domain,
                  "DDS domain id (0 … 232), over the file's telemetry.domain_id and ROS_DOMAIN_ID")
       ->check(CLI::Range(0, 232));
+  std::string observer_log, replay_log;
+  double observer_log_seconds = 60.0;
+  cli.add_option("--observer-log", observer_log,
+                 "write the observer's inputs of the run's last --observer-log-seconds to this CSV "
+                 "(every cycle: each joint's feedback, status and sample time, the command, the live "
+                 "residual and verdict) for --replay-observer");
+  cli.add_option("--observer-log-seconds", observer_log_seconds,
+                 "how much of the run --observer-log keeps [s] (default 60, at most 300)");
+  cli.add_option("--replay-observer", replay_log,
+                 "run the configuration's observer over an --observer-log file instead of the robot: "
+                 "what the live and the replayed observer concluded, and the cycles before the first "
+                 "fault; exit 4 when the replay finds a fault")
+      ->excludes("--plots");
   if (const auto rc = cli::parse(cli, argc, argv, kTool)) return *rc;
 
   pedalwave::config::DaemonConfig cfg;
@@ -82,7 +95,16 @@ int main(int argc, char** argv) {
     cfg.runtime.max_cycles =
         *duration > 0 ? static_cast<std::uint64_t>(std::llround(*duration * cfg.runtime.rt.rate_hz)) : 0;
   }
+  if (!replay_log.empty()) {
+    try {
+      return app::replay_observer(cfg, replay_log, std::cout);
+    } catch (const app::BadInput& e) {
+      return cli::bad_input(kTool, e.what());
+    }
+  }
   app::DaemonOptions opt;
+  opt.observer_log = observer_log;
+  opt.observer_log_seconds = observer_log_seconds;
   opt.plots_dir = plots_dir;
   opt.telemetry = !no_telemetry;
   opt.domain = domain;

@@ -3,6 +3,7 @@
 // same runtime against the in-process simulated plant, for comparing how they walk.
 #pragma once
 
+#include <gtest/gtest.h>
 #include <fcntl.h>
 #include <sys/socket.h>
 #include <time.h>
@@ -14,6 +15,7 @@
 #include <sstream>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <ostream>
@@ -241,7 +243,33 @@ inline WalkResult run_walk(const config::DaemonConfig& cfg, vrobot::VirtualRobot
   r.robot_thread = robot.thread_note();
   app::DaemonOptions o = quiet(&drv, telemetry);
   o.plots_dir = plots_dir;
+  // The observer's inputs of every bus walk (in the plots' folder, else the test's temporary one):
+  // a walk that ends with a fault event prints the replay's account of the cycles before it.
+  if (cfg.observer) {
+    static int walks = 0;
+    o.observer_log = plots_dir.empty() ? ::testing::TempDir() + "walk_observer_inputs_" + std::to_string(::getpid()) +
+                                             "_" + std::to_string(++walks) + ".csv"
+                                       : plots_dir + "/observer_inputs.csv";
+  }
   r.daemon = app::run_daemon(cfg, o);
+  if (!o.observer_log.empty()) {
+    bool faulted = false;
+    for (const runtime::RunEvent& e : r.daemon.events)
+      faulted = faulted || (e.listed && e.sample.fault != runtime::FaultClass::kNone);
+    if (faulted) {
+      std::ostringstream replay;
+      try {
+        (void)app::replay_observer(cfg, o.observer_log, replay);
+      } catch (const std::exception& e) {
+        replay << "replay failed: " << e.what() << "\n";
+      }
+      std::printf("[walk] a fault event: the observer's inputs are in %s; its replay:\n%s", o.observer_log.c_str(),
+                  replay.str().c_str());
+      std::fflush(stdout);
+    } else if (plots_dir.empty()) {
+      std::filesystem::remove(o.observer_log);
+    }
+  }
   // The daemon's last driver call was safe_stop(): wait until the modules latched it.
   const int J = robot.joints();
   // (A loaded or emulated machine may still be working through its backlog: wait generously.)

@@ -436,7 +436,7 @@ void CanOpenDriver::drain(std::int64_t rt_minus_mono_ns, bool before_sync) noexc
     const canid_t raw = r.frame.can_id;
     if (r.bytes == CAN_MTU && !r.truncated && (raw & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) == 0 &&
         (raw & CAN_SFF_MASK) == co::kCobSync) {
-      if (echo_) on_sync_echo(stamp);
+      if (echo_) on_sync_echo(stamp, r.stamp_ns != 0 && !r.stamped_at_read);
       continue;
     }
     if (r.own) continue;
@@ -579,9 +579,19 @@ void CanOpenDriver::handle(const can_frame& f, std::int64_t stamp, bool before_s
   torque_[ju] = v.torque;
 }
 
-void CanOpenDriver::on_sync_echo(std::int64_t stamp) noexcept {
+void CanOpenDriver::on_sync_echo(std::int64_t stamp, bool stamp_known) noexcept {
   if (!echo_pending_) return;  // safe_stop()'s, or one whose SYNC was given up on
   echo_pending_ = false;
+  if (!stamp_known) {
+    // Stamped when this thread read it (or not at all): when the SYNC was on the bus is not
+    // known. The drives sampled then, and the command this SYNC put in force acts from then: both
+    // go out without a time (an interval the observer bridges), not with this thread's.
+    ++echoes_stamped_at_read_;
+    sync_known_ = false;
+    if (prev_sync_.cycle == last_sync_.cycle) prev_sync_.known = false;
+    last_sync_.known = false;
+    return;
+  }
   const std::int64_t t = (wire_before_sync_ns_ > stamp ? wire_before_sync_ns_ : stamp) + sync_wire_ns_;
   const std::int64_t delay = stamp - t_sync_ns_;
   if (delay > sync_delay_max_ns_) sync_delay_max_ns_ = delay;
@@ -615,7 +625,7 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   deadline_ns_ = deadline_ns;
   bus_error_cycle_ = false;
   prev_sync_ = last_sync_;  // the SYNC whose late answers this read's first drain gathers
-  const std::int64_t rt_off = detail::clock_ns(CLOCK_REALTIME) - detail::monotonic_ns();
+  const std::int64_t rt_off = rt_offset_.get();
   drain(rt_off, true);
   // No SYNC while the previous one's synchronous window is open: a drive may still answer it, and
   // an answer sent after a newer SYNC would be taken for that one's (a PDO names no SYNC). After
@@ -661,6 +671,8 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   // the interval over which the previous SYNC's command acted (reported: applied then).
   prev_acting_seq_ = acting_seq_;
   prev_sync_ns_ = sync_lower_ns_;
+  prev_sync_known_ = sync_known_;
+  sync_known_ = true;
   if (written_) acting_seq_ = written_seq_;
   written_ = false;
   can_frame sync{};
@@ -671,7 +683,7 @@ IoStatus CanOpenDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
   sync_lower_ns_ = (wire_busy_ns_ > t_sync ? wire_busy_ns_ : t_sync) + sync_wire_ns_;
   wire_before_sync_ns_ = wire_busy_ns_;
   t_sync_ns_ = t_sync;
-  last_sync_ = SyncRecord{cycle_, sync_lower_ns_, prev_acting_seq_, prev_sync_ns_};
+  last_sync_ = SyncRecord{cycle_, sync_lower_ns_, prev_acting_seq_, prev_sync_known_ ? prev_sync_ns_ : 0};
   if (echo_pending_) ++echo_lost_;  // the previous SYNC's echo never came
   const std::uint64_t rx_dropped_before = counters_.rx_dropped;
   const Tx tx = send(sync);
@@ -724,11 +736,12 @@ IoStatus CanOpenDriver::finish_read(Feedback& out, Tx tx) noexcept {
       ++counters_.missing;
     } else if (have) {
       ++fresh;
-      out.sample_ns[ju] = sync_lower_ns_;
+      out.sample_ns[ju] = sync_known_ ? sync_lower_ns_ : 0;
+      if (!sync_known_) st |= kStatusNoTiming;
       // The command applied last before this sample: the one the previous SYNC put in force (this
       // SYNC's takes effect as the sample is taken, and acts over the next interval).
       out.applied_seq[ju] = prev_acting_seq_;
-      out.applied_ns[ju] = prev_sync_ns_;
+      out.applied_ns[ju] = prev_sync_known_ ? prev_sync_ns_ : 0;
       handed_cycle_[ju] = cycle_;
       if (have_late && prev_sync_.applied_ns != 0) {
         // The previous SYNC's answer came late as well: when its command took effect (the
@@ -746,7 +759,8 @@ IoStatus CanOpenDriver::finish_read(Feedback& out, Tx tx) noexcept {
       beta_dot_[ju] = late_[ju].beta_dot;
       defl_[ju] = late_[ju].defl;
       torque_[ju] = late_[ju].torque;
-      out.sample_ns[ju] = prev_sync_.lower_ns;
+      out.sample_ns[ju] = prev_sync_.known ? prev_sync_.lower_ns : 0;
+      if (!prev_sync_.known) st |= kStatusNoTiming;
       out.applied_seq[ju] = prev_sync_.applied_seq;
       out.applied_ns[ju] = prev_sync_.applied_ns;
       handed_cycle_[ju] = prev_sync_.cycle;

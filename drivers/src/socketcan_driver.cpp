@@ -367,7 +367,7 @@ IoStatus SocketCanDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns
   deadline_ns_ = deadline_ns;
   bus_error_cycle_ = false;
   // Kernel stamps are CLOCK_REALTIME; Feedback wants CLOCK_MONOTONIC.
-  const std::int64_t rt_off = detail::clock_ns(CLOCK_REALTIME) - detail::monotonic_ns();
+  const std::int64_t rt_off = rt_offset_.get();
 
   // Frames already queued are answers to older SYNCs: classify them against the new counter.
   drain(rt_off);

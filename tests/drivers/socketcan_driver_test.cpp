@@ -11,11 +11,15 @@
 #include <cstring>
 #include <stdexcept>
 #include <system_error>
+#include <vector>
 #include <initializer_list>
+#include <array>
+#include <chrono>
 #include <thread>
 
 #include "alloc_counter.hpp"
 #include "cycle_harness.hpp"
+#include "pedalwave/drivers/can_receive.hpp"
 #include "pedalwave/drivers/can_protocol.hpp"
 #include "pedalwave/drivers/module_emulator.hpp"
 #include "pedalwave/drivers/socketcan_driver.hpp"
@@ -550,4 +554,106 @@ TEST(CanAllocation, SteadyStateReadWriteAllocateNothing) {
     EXPECT_EQ(allocs, 0u) << (fd ? "fd" : "classic");
     EXPECT_GT(rig.drv->counters().frames_rx, 400u);  // the measured path did receive frames
   }
+}
+
+// ---- detail::RealtimeOffset: kernel stamps onto CLOCK_MONOTONIC, robust to a preemption ----
+namespace {
+// A scripted clock: each clock read costs 300 ns; before the n-th realtime read, preempt[n] ns
+// pass (the thread held between the monotonic and the realtime read); offset is the true
+// CLOCK_REALTIME − CLOCK_MONOTONIC (a clock step changes it).
+struct ScriptedClock {
+  static inline std::int64_t offset = 1'700'000'000'000'000'000LL;
+  static inline std::vector<std::int64_t> preempt;
+  static inline std::int64_t now = 1'000'000;
+  static inline std::size_t reads = 0;
+  static std::int64_t read(clockid_t id) noexcept {
+    now += 300;
+    if (id == CLOCK_REALTIME) {
+      const std::int64_t p = reads < preempt.size() ? preempt[reads] : 0;
+      ++reads;
+      now += p;
+      return now + offset;
+    }
+    return now;
+  }
+  static void script(std::vector<std::int64_t> p) {
+    preempt = std::move(p);
+    reads = 0;
+  }
+};
+double off_by(std::int64_t v) { return static_cast<double>(v - ScriptedClock::offset); }
+}  // namespace
+
+TEST(RealtimeOffset, APreemptionBetweenTheClockReadsDoesNotMoveTheOffset) {
+  ScriptedClock::offset = 1'700'000'000'000'000'000LL;
+  ScriptedClock::script({0, 800'000, 800'000, 0, 800'000, 800'000, 800'000, 40'000});
+  pedalwave::drivers::detail::RealtimeOffset off(50'000, &ScriptedClock::read);
+  // The first read: a tight bracket, the realtime read in its middle.
+  EXPECT_NEAR(off_by(off.get()), 0.0, 300.0);
+  EXPECT_EQ(off.retried(), 0u);
+  // Two preempted brackets, then a tight one.
+  EXPECT_NEAR(off_by(off.get()), 0.0, 300.0);
+  EXPECT_EQ(off.retried(), 2u);
+  EXPECT_EQ(off.loose(), 0u);
+  // Three preempted brackets: the kept offset stands (two reads in a row would be 0.8 ms off).
+  EXPECT_NEAR(off_by(off.get()), 0.0, 300.0);
+  EXPECT_EQ(off.loose(), 1u);
+  // A bracket within the limit but wider than the kept one (40 µs: its midpoint 20 µs off): kept.
+  EXPECT_NEAR(off_by(off.get()), 0.0, 300.0);
+  EXPECT_EQ(off.steps(), 0u);
+  EXPECT_LE(off.width_ns(), 1000);
+}
+
+TEST(RealtimeOffset, AClockStepIsFollowed) {
+  ScriptedClock::offset = 1'700'000'000'000'000'000LL;
+  ScriptedClock::script({});
+  pedalwave::drivers::detail::RealtimeOffset off(50'000, &ScriptedClock::read);
+  EXPECT_NEAR(off_by(off.get()), 0.0, 300.0);
+  ScriptedClock::offset += 5'000'000;  // the system clock set 5 ms ahead
+  EXPECT_NEAR(off_by(off.get()), 0.0, 300.0);
+  EXPECT_EQ(off.steps(), 1u);
+  ScriptedClock::offset -= 400'000;  // 0.4 ms: below the step threshold, not a step (kept)
+  EXPECT_NEAR(off_by(off.get()), 400'000.0, 300.0);
+  EXPECT_EQ(off.steps(), 1u);
+}
+
+TEST(RealtimeOffset, TheFirstReadWithoutATightBracketTakesTheTightestOfThree) {
+  ScriptedClock::offset = 1'700'000'000'000'000'000LL;
+  ScriptedClock::script({900'000, 100'000, 700'000});
+  pedalwave::drivers::detail::RealtimeOffset off(50'000, &ScriptedClock::read);
+  // The 100 µs bracket: its middle is 50 µs from the realtime read's true time.
+  EXPECT_NEAR(off_by(off.get()), 0.0, 51'000.0);
+  EXPECT_EQ(off.loose(), 1u);
+}
+
+// ---- receive_frame: a stamp taken when the frame entered the kernel, or only when it was read ----
+TEST(ReceiveFrame, TellsAStampTakenAtTheReadFromOneTakenOnEntry) {
+  int sv[2];
+  ASSERT_EQ(::socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
+  const int one = 1;
+  can_frame f{};
+  f.can_id = 0x080;
+  alignas(cmsghdr) std::array<char, 128> cbuf{};
+  pedalwave::drivers::ReceivedFrame r;
+  pedalwave::drivers::detail::RealtimeOffset off;
+  // Stamps on when the frame is sent: the kernel stamps it on its way in.
+  ASSERT_EQ(::setsockopt(sv[1], SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one), 0);
+  ASSERT_EQ(::send(sv[0], &f, sizeof f, 0), static_cast<ssize_t>(sizeof f));
+  std::this_thread::sleep_for(std::chrono::milliseconds(3));
+  ASSERT_EQ(pedalwave::drivers::receive_frame(sv[1], cbuf, off.get(), r), pedalwave::drivers::Receive::kFrame);
+  ASSERT_NE(r.stamp_ns, 0);
+  EXPECT_FALSE(r.stamped_at_read);
+  EXPECT_LT(r.stamp_ns, pedalwave::drivers::detail::monotonic_ns() - 2'000'000) << "the stamp is the send's";
+  // Stamps switched on only after the frame was queued: it is stamped when read.
+  int a[2];
+  ASSERT_EQ(::socketpair(AF_UNIX, SOCK_SEQPACKET, 0, a), 0);
+  ASSERT_EQ(::send(a[0], &f, sizeof f, 0), static_cast<ssize_t>(sizeof f));
+  std::this_thread::sleep_for(std::chrono::milliseconds(3));
+  ASSERT_EQ(::setsockopt(a[1], SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one), 0);
+  const std::int64_t before = pedalwave::drivers::detail::monotonic_ns();
+  ASSERT_EQ(pedalwave::drivers::receive_frame(a[1], cbuf, off.get(), r), pedalwave::drivers::Receive::kFrame);
+  if (r.stamp_ns == 0) GTEST_SKIP() << "SKIPPED: this kernel gives no stamp to a frame queued before SO_TIMESTAMPNS";
+  EXPECT_TRUE(r.stamped_at_read);
+  EXPECT_GT(r.stamp_ns, before - 100'000) << "the stamp is the read's, not the send's 3 ms earlier";
+  for (int fd : {sv[0], sv[1], a[0], a[1]}) ::close(fd);
 }

@@ -494,7 +494,7 @@ void CanOpenModuleEmulator::run(const std::atomic<bool>& stop) {
     }
     bank_.on_turn(detail::monotonic_ns());
     bool got = false;
-    const std::int64_t rt_off = detail::clock_ns(CLOCK_REALTIME) - detail::monotonic_ns();
+    const std::int64_t rt_off = rt_offset_.get();
     alignas(cmsghdr) std::array<char, 128> cbuf{};
     ReceivedFrame r;
     for (;;) {

@@ -57,6 +57,7 @@ void spread_module_clocks(EmulatorConfig& cfg, double drift_ppm, std::uint32_t s
 // ---- ModuleBank ---------------------------------------------------------------------------------
 ModuleBank::ModuleBank(const EmulatorConfig& cfg, ModulePlant& plant)
     : cfg_(cfg), plant_(plant), rng_(cfg.faults.seed) {
+  trace_.reserve(cfg.trace_syncs);
   if (cfg.joints < 1 || cfg.joints > kMaxJoints)
     throw std::invalid_argument("module emulator: joints = " + std::to_string(cfg.joints) +
                                 ", expected 1…" + std::to_string(kMaxJoints));
@@ -160,6 +161,8 @@ void ModuleBank::on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept {
   }
   keep_longest(stats_.sync_gap_max_ns, last_sync_ns_, t_ns);
   start_clock(t_ns);
+  if (trace_.size() < trace_.capacity())
+    trace_.push_back({syncs_, t_ns, detail::monotonic_ns(), front_ns_ > t_ns ? front_ns_ - t_ns : 0});
   // 1. Integrate up to the SYNC with the commands applied so far.
   advance_plant(t_ns);
   last_advance_ns_ = t_ns;

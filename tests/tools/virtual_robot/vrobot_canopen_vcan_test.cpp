@@ -116,11 +116,14 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
   // emulated machine did not run the loop in real time (seen with a compiler beside the VM: reads
   // of 26 ms in a 10 ms period, the loop at ≈ 37 Hz), and such a run says nothing about the
   // deployment path. Open (issue 14): in such a run the observer can still name a false
-  // actuator_torque.
+  // actuator_torque (or deflection_bias, motor_friction): the master and the emulated drives
+  // disagree on a SYNC's time by 10–120 µs in 2–8 % of such a run's cycles (drive_syncs.csv
+  // against observer_inputs.csv in PEDALWAVE_VM_PLOTS), a residual kick of the threshold's size.
   const std::string file = std::string(::testing::TempDir()) + "canopen_candump.log";
   std::vector<std::string> lines;
   std::string driver_fault;
-  int driver_fault_joint = -1, void_runs = 0, attempts = 0;
+  int driver_fault_joint = -1, void_runs = 0;
+  static int attempts = 0;  // across --gtest_repeat too: each attempt's folder is kept
   std::string sync_note;
   auto attempt = [&] { return test::walk_unless_machine_stalled("canopen vcan walk", rate, void_runs, [&] {
     Candump dump(exe, file);
@@ -128,6 +131,7 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
     std::this_thread::sleep_for(std::chrono::milliseconds(300));  // candump bound to vcan0
     vrobot::VirtualRobotOptions vo = test::robot_options(s, scene, {});
     vo.bus = vrobot::Bus::kCanOpen;
+    if (!plots.empty()) vo.emulator.trace_syncs = 4000;
     vrobot::VirtualRobot robot(scene, vrobot::open_canopen_module_socket(kIf), vo);
     robot.start();
     std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the drives' power-on boot-ups
@@ -135,19 +139,29 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
     // One folder per attempt: a void run's data stay beside the verdict's.
     const std::string attempt_plots = plots.empty() ? plots : plots + "/attempt-" + std::to_string(++attempts);
     test::WalkResult w = test::run_walk(cfg, robot, *drv, false, attempt_plots);
+    if (!attempt_plots.empty()) {  // the drives' view of each SYNC (ModuleBank::SyncTrace)
+      std::ofstream tr(attempt_plots + "/drive_syncs.csv");
+      tr << "sync,stamp_ns,handled_ns,behind_ns\n";
+      for (const auto& x : robot.bank().sync_trace())
+        tr << x.sync << ',' << x.stamp_ns << ',' << x.handled_ns << ',' << x.behind_ns << '\n';
+    }
     std::this_thread::sleep_for(std::chrono::milliseconds(500));  // candump writes the tail
     dump.stop();
     lines = dump.lines();
     driver_fault = drv->fault_text();
     driver_fault_joint = drv->fault_joint();
-    char echo[200];
+    char echo[320];
     std::snprintf(echo, sizeof echo,
                   "SYNC echo %s: longest send %.2f ms, %llu SYNCs sent > 1 ms late, %llu echoes lost; %llu SYNCs held "
-                  "(the previous window open)",
+                  "(the previous window open); clock offset: %llu tries re-read, kept bracket %lld ns; %llu echoes "
+                  "stamped at read (no time)",
                   drv->sync_echo() ? "on" : "OFF", 1e-6 * static_cast<double>(drv->sync_delay_max_ns()),
                   static_cast<unsigned long long>(drv->syncs_delayed()),
                   static_cast<unsigned long long>(drv->sync_echoes_lost()),
-                  static_cast<unsigned long long>(drv->syncs_held()));
+                  static_cast<unsigned long long>(drv->syncs_held()),
+                  static_cast<unsigned long long>(drv->clock_offset().retried()),
+                  static_cast<long long>(drv->clock_offset().width_ns()),
+                  static_cast<unsigned long long>(drv->echoes_stamped_at_read()));
     sync_note = echo;
     return w;
   }); };

@@ -20,6 +20,11 @@ struct ReceivedFrame {
   std::size_t bytes = 0;          // what recvmsg returned: CAN_MTU or CANFD_MTU for a whole frame
   bool truncated = false;         // MSG_TRUNC: larger than canfd_frame
   std::int64_t stamp_ns = 0;      // SCM_TIMESTAMPNS on CLOCK_MONOTONIC [ns]; 0 = not stamped
+  // The stamp was taken by this recvmsg, not when the frame entered the kernel: a frame the
+  // kernel did not stamp on entry is stamped by each socket's reader when it reads it (a loaded
+  // vcan VM: 5–15 % of the SYNCs, the master's and the drives' stamps 0.01–0.8 ms apart). Such a
+  // stamp says when this thread read the frame, not when it was on the bus.
+  bool stamped_at_read = false;
   bool own = false;               // MSG_CONFIRM: a frame this socket sent, looped back (CAN_RAW_RECV_OWN_MSGS)
   bool have_rxq_ovfl = false;     // SO_RXQ_OVFL present (the socket's drop counter) …
   std::uint32_t rxq_ovfl = 0;     // … its value [-]
@@ -30,11 +35,14 @@ enum class Receive : std::uint8_t { kFrame, kNone, kClosed };
 // One recvmsg(MSG_DONTWAIT) into `out` (EINTR retried). kNone: nothing queued (or an error, which
 // surfaces as a missing frame); kClosed: the peer closed a socket pair. The realtime stamp is
 // mapped to CLOCK_MONOTONIC by rt_minus_mono_ns (CLOCK_REALTIME − CLOCK_MONOTONIC); a zero stamp
-// means "not stamped" (RX timestamping is switched on asynchronously).
+// means "not stamped" (RX timestamping is switched on asynchronously); stamped_at_read says the
+// kernel stamped it only now (a stamp not before the call).
 inline Receive receive_frame(int fd, std::span<char> control, std::int64_t rt_minus_mono_ns,
                              ReceivedFrame& out) noexcept {
   for (;;) {
     out = ReceivedFrame{};
+    timespec before{};  // on the stamps' own clock: no offset's error in the comparison
+    ::clock_gettime(CLOCK_REALTIME, &before);
     iovec iov{&out.frame, sizeof out.frame};
     msghdr m{};
     m.msg_iov = &iov;
@@ -55,8 +63,10 @@ inline Receive receive_frame(int fd, std::span<char> control, std::int64_t rt_mi
       if (c->cmsg_type == SCM_TIMESTAMPNS) {
         timespec ts{};
         std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-        if (ts.tv_sec != 0 || ts.tv_nsec != 0)
+        if (ts.tv_sec != 0 || ts.tv_nsec != 0) {
           out.stamp_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000LL + ts.tv_nsec - rt_minus_mono_ns;
+          out.stamped_at_read = ts.tv_sec > before.tv_sec || (ts.tv_sec == before.tv_sec && ts.tv_nsec >= before.tv_nsec);
+        }
       } else if (c->cmsg_type == SO_RXQ_OVFL) {
         std::memcpy(&out.rxq_ovfl, CMSG_DATA(c), sizeof out.rxq_ovfl);
         out.have_rxq_ovfl = true;

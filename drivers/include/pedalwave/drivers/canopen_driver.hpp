@@ -45,6 +45,7 @@
 #include <memory>
 #include <string>
 
+#include "pedalwave/drivers/posix_util.hpp"
 #include "pedalwave/drivers/bus_budget.hpp"
 #include "pedalwave/drivers/canopen.hpp"
 #include "pedalwave/drivers/cia402.hpp"
@@ -104,6 +105,14 @@ class CanOpenDriver final : public Driver {
   std::uint64_t sync_echoes_lost() const noexcept { return echo_lost_; }
   // Reads that sent no SYNC because the previous SYNC's synchronous window was still open (read()).
   std::uint64_t syncs_held() const noexcept { return syncs_held_; }
+  // The clock offset that maps kernel stamps onto CLOCK_MONOTONIC (detail::RealtimeOffset): reads
+  // that had to read it again (the thread preempted between the clock reads), and those without
+  // a tight bracket in three tries (the previous offset used).
+  const detail::RealtimeOffset& clock_offset() const noexcept { return rt_offset_; }
+  // SYNC echoes whose kernel stamp was taken when this thread read them (ReceivedFrame::
+  // stamped_at_read): that SYNC's samples and the command it put in force carry no time
+  // (kStatusNoTiming; the observer bridges them) [-].
+  std::uint64_t echoes_stamped_at_read() const noexcept { return echoes_stamped_at_read_; }
 
  private:
   enum class Tx : std::uint8_t { kOk, kDropped, kDown };
@@ -122,7 +131,7 @@ class CanOpenDriver final : public Driver {
   // Cycle.
   void drain(std::int64_t rt_minus_mono_ns, bool before_sync) noexcept;
   void handle(const can_frame& f, std::int64_t stamp_ns, bool before_sync) noexcept;
-  void on_sync_echo(std::int64_t stamp_ns) noexcept;
+  void on_sync_echo(std::int64_t stamp_ns, bool stamp_known) noexcept;
   // read()'s end: the feedback of what this read gathered, fresh or late.
   IoStatus finish_read(Feedback& out, Tx tx) noexcept;
   void note_fault(int j, const char* fmt, unsigned a, unsigned b, const char* text) noexcept;
@@ -175,6 +184,8 @@ class CanOpenDriver final : public Driver {
   // Commands: the seq written last (acts from the next SYNC) and the one the drives act on now.
   std::uint64_t written_seq_ = kNoCommandSeq, acting_seq_ = kNoCommandSeq, prev_acting_seq_ = kNoCommandSeq;
   std::int64_t prev_sync_ns_ = 0;  // the previous SYNC's lower bound [ns]
+  bool sync_known_ = true, prev_sync_known_ = true;  // sync_lower_ns_ / prev_sync_ns_ are the bus times
+  std::uint64_t echoes_stamped_at_read_ = 0;
   bool written_ = false;
   // The SYNC sent by the previous read, for its late answers: its lower bound, and the command its
   // sample reports applied (seq, when) [ns].
@@ -182,9 +193,12 @@ class CanOpenDriver final : public Driver {
     std::uint64_t cycle = 0;  // 0: none yet
     std::int64_t lower_ns = 0;
     std::uint64_t applied_seq = kNoCommandSeq;
-    std::int64_t applied_ns = 0;
+    std::int64_t applied_ns = 0;  // 0: when is unknown
+    bool known = true;            // lower_ns is when the drives sampled (false: its echo's stamp
+                                  // was taken at read, the sample's time is unknown)
   };
   SyncRecord last_sync_{}, prev_sync_{};
+  detail::RealtimeOffset rt_offset_;  // the kernel stamps onto CLOCK_MONOTONIC
   // Late answers (to prev_sync_) per joint, and the SYNC of the sample handed out last.
   std::array<bool, kMaxJoints> late1_{}, late2_{};
   std::array<DriveValues, kMaxJoints> late_{};

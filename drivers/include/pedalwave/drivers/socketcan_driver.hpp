@@ -38,6 +38,7 @@
 #include <span>
 #include <string>
 
+#include "pedalwave/drivers/posix_util.hpp"
 #include "pedalwave/drivers/can_protocol.hpp"
 #include "pedalwave/interface/io.hpp"
 #include "pedalwave/drivers/late_sample.hpp"
@@ -170,6 +171,7 @@ class SocketCanDriver final : public Driver {
   std::array<ModuleClock, kMaxJoints> clocks_{};
   std::int64_t sync_wire_ns_ = 0;   // SYNC frame's wire time at the configured bit rate [ns]
   std::int64_t sync_lower_ns_ = 0;  // no module can have sampled before this [ns]
+  detail::RealtimeOffset rt_offset_;  // the kernel stamps onto CLOCK_MONOTONIC
   // Each answer placed among the host's cycles (answer_log.hpp): the cycles' SYNC bounds and
   // commands, per joint the answers' track and this cycle's fresh answer's cycle.
   CycleLog log_;

@@ -42,6 +42,7 @@
 #include <string>
 #include <vector>
 
+#include "pedalwave/drivers/posix_util.hpp"
 #include "pedalwave/drivers/canopen.hpp"
 #include "pedalwave/drivers/cia402.hpp"
 #include "pedalwave/drivers/module_emulator.hpp"
@@ -178,6 +179,7 @@ class CanOpenModuleEmulator {
   std::size_t head_ = 0, tail_ = 0;
   bool blocked_ = false;
   std::uint32_t rxq_ovfl_ = 0;  // last SO_RXQ_OVFL value [-]
+  detail::RealtimeOffset rt_offset_;  // the kernel stamps onto CLOCK_MONOTONIC
   bool booted_ = false;
   std::array<std::atomic<std::uint8_t>, kMaxJoints> pub_nmt_{}, pub_drive_{};
   void publish() noexcept;  // node_[j].nmt / drive → pub_*

@@ -34,6 +34,7 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <vector>
 #include <random>
 
 #include "pedalwave/drivers/dynamixel.hpp"
@@ -120,6 +121,7 @@ struct EmulatorConfig {
   XSeriesConfig x{};
   bool fd = false;                                // CAN: FD frame set (command groups, FD replies)
   std::int64_t command_timeout_ns = 500'000'000;  // command lifetime [ns] (> the host's stale_timeout)
+  std::size_t trace_syncs = 0;                    // keep a SyncTrace of the first this many SYNCs [-]
   BusTimingConfig bus{};
   // Each module's free-running microsecond clock: reading at the emulator's first SYNC [µs] and
   // rate error [ppm] (a crystal: tens of ppm), (N-1).
@@ -168,6 +170,14 @@ struct EmulatorStats {
 class ModuleBank {
  public:
   ModuleBank(const EmulatorConfig& cfg, ModulePlant& plant);
+  // One SYNC as the bank handled it (EmulatorConfig::trace_syncs; diagnostics of the bus tests):
+  // its stamp, when this thread got to it, and how far the plant was already past the stamp
+  // (kept at wall time while the SYNC was overdue: the sample is the plant's, that much later).
+  struct SyncTrace {
+    std::uint64_t sync = 0;
+    std::int64_t stamp_ns = 0, handled_ns = 0, behind_ns = 0;
+  };
+  const std::vector<SyncTrace>& sync_trace() const { return trace_; }
   int joints() const { return cfg_.joints; }
   // SYNC with counter c arriving at time t: advance, check lifetimes, sample and stamp.
   void on_sync(std::uint8_t counter, std::int64_t t_ns) noexcept;
@@ -243,6 +253,7 @@ class ModuleBank {
   std::size_t recent_sync_next_ = 0;
   std::int64_t last_advance_ns_ = -1;   // host time the plant was last advanced to [ns]
   std::int64_t front_ns_ = -1;          // the latest host time the plant has been integrated to [ns]
+  std::vector<SyncTrace> trace_;        // reserved to cfg_.trace_syncs
   void advance_plant(std::int64_t t_ns) noexcept;  // plant_.advance_to, counting stamps behind
   std::int64_t last_turn_ns_ = -1;      // end of the front end's previous loop turn [ns]
   Feedback sample_{};

@@ -256,8 +256,12 @@ StepStatus Integrator::step_implicit_contact(System& sys, double t, double h, Ve
                                              VectorXd& v) {
   const double th = o_.theta, a = th * h;  // and θ²h² = a · θh
   const bool always = o_.jacobian_age == 0;  // a fresh Jacobian at every evaluation
-  // The kept factorization expires after jacobian_age steps, or when h changed.
-  if (always || h != h_slu_ || ++jac_age_ > o_.jacobian_age) slu_valid_ = false;
+  // The kept factorization expires after jacobian_age steps, or when h changed — by more than
+  // rounding: a caller stepping to t + period gets h = (t + period) − t, which differs from the
+  // period in its last bits from one step to the next; that must not refresh the Jacobian (it
+  // did, at random steps: the same run then took another path within the Newton tolerance
+  // depending on how the caller spelled its times).
+  if (always || std::abs(h - h_slu_) > 1e-9 * h || ++jac_age_ > o_.jacobian_age) slu_valid_ = false;
   // Every evaluation wants only M − θh (D_v + θh D_q) (ImplicitTerms::dq_in_dv); the start's also
   // D_q v for the predictor and M(q₀) for every correction.
   ick_.dq_in_dv = imp1_.dq_in_dv = a;

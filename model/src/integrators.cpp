@@ -61,7 +61,7 @@ void validate(const IntegratorOptions& o) {
 }
 
 StructuredLU::StructuredLU(int n)
-    : A_(MatrixXd::Zero(n, n)), d_inv_(VectorXd::Zero(n)), piv_(Eigen::VectorXi::Zero(n)), n_(n) {}
+    : A_(MatrixXd::Zero(n, n)), d_inv_(VectorXd::Zero(n)), u_inv_(VectorXd::Zero(n)), piv_(Eigen::VectorXi::Zero(n)), n_(n) {}
 
 // Column-major with raw column pointers (restrict: the columns a loop reads and the one it writes
 // never overlap), so the inner loops over rows vectorize.
@@ -102,6 +102,7 @@ bool StructuredLU::factor(int nd) {
     if (p != k)
       for (int c = 0; c < n1; ++c) std::swap(col(c)[k], col(c)[p]);
     const double inv = 1.0 / ak[k];
+    u_inv_(k) = inv;  // the back substitution multiplies (a division there stalled the solve)
     for (int i = k + 1; i < n1; ++i) ak[i] *= inv;
     for (int c = k + 1; c < n1; ++c) {
       double* __restrict ac = col(c);
@@ -136,7 +137,7 @@ void StructuredLU::solve(Eigen::Ref<VectorXd> b) const {
   }
   for (int k = n1 - 1; k >= 0; --k) {
     const double* __restrict ak = col(k);
-    const double t = x[k] / ak[k];
+    const double t = x[k] * u_inv_(k);
     x[k] = t;
     if (t == 0.0) continue;
     for (int i = 0; i < k; ++i) x[i] -= ak[i] * t;
@@ -256,8 +257,12 @@ StepStatus Integrator::step_implicit_contact(System& sys, double t, double h, Ve
                                              VectorXd& v) {
   const double th = o_.theta, a = th * h;  // and θ²h² = a · θh
   const bool always = o_.jacobian_age == 0;  // a fresh Jacobian at every evaluation
-  // The kept factorization expires after jacobian_age steps, or when h changed.
-  if (always || h != h_slu_ || ++jac_age_ > o_.jacobian_age) slu_valid_ = false;
+  // The kept factorization expires after jacobian_age steps, or when h changed — by more than
+  // rounding: a caller stepping to t + period gets h = (t + period) − t, which differs from the
+  // period in its last bits from one step to the next; that must not refresh the Jacobian (it
+  // did, at random steps: the same run then took another path within the Newton tolerance
+  // depending on how the caller spelled its times).
+  if (always || std::abs(h - h_slu_) > 1e-9 * h || ++jac_age_ > o_.jacobian_age) slu_valid_ = false;
   // Every evaluation wants only M − θh (D_v + θh D_q) (ImplicitTerms::dq_in_dv); the start's also
   // D_q v for the predictor and M(q₀) for every correction.
   ick_.dq_in_dv = imp1_.dq_in_dv = a;

@@ -74,6 +74,7 @@ class StructuredLU {
  private:
   MatrixXd A_;            // S's LU in the leading n1×n1 block, A12 A22⁻¹ beside it, A21 below
   VectorXd d_inv_;        // A22⁻¹'s diagonal, (nd)
+  VectorXd u_inv_;        // 1 / U's diagonal, (n1)
   Eigen::VectorXi piv_;   // row k swapped with row piv_(k) at step k, (n1)
   int n_ = 0, nd_ = 0;
 };

@@ -112,13 +112,9 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
   }
   // Each attempt: candump first, so it records the whole run. A run in which the emulated machine
   // held the link ≥ 0.2 s is VOID and run again (test::walk_unless_machine_stalled), as the own
-  // protocol's VM walks; so is one whose loop overran in more than a tenth of its cycles: the
-  // emulated machine did not run the loop in real time (seen with a compiler beside the VM: reads
-  // of 26 ms in a 10 ms period, the loop at ≈ 37 Hz), and such a run says nothing about the
-  // deployment path. Open (issue 14): in such a run the observer can still name a false
-  // actuator_torque (or deflection_bias, motor_friction): the master and the emulated drives
-  // disagree on a SYNC's time by 10–120 µs in 2–8 % of such a run's cycles (drive_syncs.csv
-  // against observer_inputs.csv in PEDALWAVE_VM_PLOTS), a residual kick of the threshold's size.
+  // protocol's VM walks. A loop that overran is not void (issue 14: once the samples of a SYNC
+  // queued behind the loop's own RPDOs went out without a time, 6 of 6 such runs were clean; before,
+  // 3 of 5–6 named a false actuator_torque, deflection_bias or motor_friction).
   const std::string file = std::string(::testing::TempDir()) + "canopen_candump.log";
   std::vector<std::string> lines;
   std::string driver_fault;
@@ -150,36 +146,26 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
     lines = dump.lines();
     driver_fault = drv->fault_text();
     driver_fault_joint = drv->fault_joint();
-    char echo[320];
+    char echo[400];
     std::snprintf(echo, sizeof echo,
                   "SYNC echo %s: longest send %.2f ms, %llu SYNCs sent > 1 ms late, %llu echoes lost; %llu SYNCs held "
                   "(the previous window open); clock offset: %llu tries re-read, kept bracket %lld ns; %llu echoes "
-                  "stamped at read (no time)",
+                  "stamped at read (no time); %llu SYNCs placed after the frames ahead (up to %.3f ms)",
                   drv->sync_echo() ? "on" : "OFF", 1e-6 * static_cast<double>(drv->sync_delay_max_ns()),
                   static_cast<unsigned long long>(drv->syncs_delayed()),
                   static_cast<unsigned long long>(drv->sync_echoes_lost()),
                   static_cast<unsigned long long>(drv->syncs_held()),
                   static_cast<unsigned long long>(drv->clock_offset().retried()),
                   static_cast<long long>(drv->clock_offset().width_ns()),
-                  static_cast<unsigned long long>(drv->echoes_stamped_at_read()));
+                  static_cast<unsigned long long>(drv->echoes_stamped_at_read()),
+                  static_cast<unsigned long long>(drv->syncs_after_frames()),
+                  1e-6 * static_cast<double>(drv->after_frames_max_ns()));
     sync_note = echo;
     return w;
   }); };
-  auto not_real_time = [](const test::WalkResult& w) { return w.daemon.run.overruns * 10 > w.daemon.run.cycles; };
-  test::WalkResult r = attempt();
-  for (int a = 2; a <= test::kAttempts && not_real_time(r); ++a) {
-    std::printf("######## VOID RUN (canopen vcan walk, attempt %d of %d): the loop overran in %llu of %llu cycles "
-                "(more than 10 %%): the machine did not run it in real time; the runtime's verdict was: %s ########\n",
-                a - 1, test::kAttempts, static_cast<unsigned long long>(r.daemon.run.overruns),
-                static_cast<unsigned long long>(r.daemon.run.cycles), r.daemon.exit_line.c_str());
-    std::printf("%s[canopen-vcan] void run: missing %llu, late %llu (used %llu), received frames the master's queue lost %llu; %s\n",
-                r.report.c_str(), static_cast<unsigned long long>(r.counters.missing),
-                static_cast<unsigned long long>(r.counters.late), static_cast<unsigned long long>(r.counters.late_used),
-                static_cast<unsigned long long>(r.counters.rx_dropped), sync_note.c_str());
-    std::fflush(stdout);
-    r = attempt();
-  }
-  EXPECT_FALSE(not_real_time(r)) << "the loop overran in more than 10 % of its cycles in every attempt";
+  // A loop that overruns (a loaded machine: 150–500 of 600 cycles late with one busy loop beside
+  // the VM) is a run like any other: the runtime's verdicts below must hold in it too.
+  const test::WalkResult r = attempt();
   EXPECT_LT(test::stall_of(r, rate).worst(), test::kMachineStall)
       << "the machine held the link in every attempt (" << void_runs << " void runs)";
   std::printf("%s[canopen-vcan] %llu cycles, overruns %llu, speed %.3f cm/s (in-process %.3f cm/s), missing %llu, "
@@ -278,7 +264,17 @@ TEST(CanOpenVcan, CspWalkWithCandumpCheckingSyncPdosAndTheBringUp) {
               "%d operational heartbeats\n", frames.size(), syncs, complete, enabled_rpdos, operational_hb);
   EXPECT_GE(syncs, static_cast<int>(r.daemon.run.cycles)) << "one SYNC per loop cycle (+ the safe stop's)";
   EXPECT_LE(syncs, static_cast<int>(r.daemon.run.cycles) + 1);
-  EXPECT_GT(complete, syncs * 9 / 10) << "every node's TPDO 1 and 2 once per SYNC";
+  // The drives' punctuality (every node's TPDOs between two SYNCs) is the emulated drives', not
+  // the runtime's: asserted when the machine ran the drives' thread without holding it ≥ 20 ms; a
+  // loaded machine holds it many times (the runtime's verdicts above hold either way).
+  if (r.emu.self_stalls == 0) {
+    EXPECT_GT(complete, syncs * 9 / 10) << "every node's TPDO 1 and 2 once per SYNC";
+  } else {
+    EXPECT_GT(complete, 0) << "every node's TPDO 1 and 2 once per SYNC, at least sometimes";
+    std::printf("######## NOT CHECKED: every node's TPDOs once per SYNC (%d of %d SYNCs complete): the machine "
+                "held the emulated drives' thread >= 20 ms %llu times; the runtime's checks above were made ########\n",
+                complete, syncs, static_cast<unsigned long long>(r.emu.self_stalls));
+  }
   EXPECT_GT(enabled_rpdos, J * syncs / 2) << "enable operation while walking";
   EXPECT_GE(operational_hb, J * 40) << "100 ms heartbeats over 6 s, state operational";
   ASSERT_NE(last_rpdo, nullptr);

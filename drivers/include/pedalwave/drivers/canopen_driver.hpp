@@ -113,6 +113,11 @@ class CanOpenDriver final : public Driver {
   // stamped_at_read): that SYNC's samples and the command it put in force carry no time
   // (kStatusNoTiming; the observer bridges them) [-].
   std::uint64_t echoes_stamped_at_read() const noexcept { return echoes_stamped_at_read_; }
+  // SYNCs whose time is the end of the frames this master sent ahead of them (by its send
+  // times), later than the echo's stamp — their samples go out without a time — and the most it
+  // moved one [-, ns].
+  std::uint64_t syncs_after_frames() const noexcept { return syncs_after_frames_; }
+  std::int64_t after_frames_max_ns() const noexcept { return after_frames_max_ns_; }
 
  private:
   enum class Tx : std::uint8_t { kOk, kDropped, kDown };
@@ -185,7 +190,8 @@ class CanOpenDriver final : public Driver {
   std::uint64_t written_seq_ = kNoCommandSeq, acting_seq_ = kNoCommandSeq, prev_acting_seq_ = kNoCommandSeq;
   std::int64_t prev_sync_ns_ = 0;  // the previous SYNC's lower bound [ns]
   bool sync_known_ = true, prev_sync_known_ = true;  // sync_lower_ns_ / prev_sync_ns_ are the bus times
-  std::uint64_t echoes_stamped_at_read_ = 0;
+  std::uint64_t echoes_stamped_at_read_ = 0, syncs_after_frames_ = 0;
+  std::int64_t after_frames_max_ns_ = 0;
   bool written_ = false;
   // The SYNC sent by the previous read, for its late answers: its lower bound, and the command its
   // sample reports applied (seq, when) [ns].

@@ -337,9 +337,10 @@ void decode_feedback_block(const std::uint8_t* i, FeedbackBlock& fb) noexcept {
 namespace x {
 
 void decode_present_values(const std::uint8_t* i, double current_lsb, PresentValues& f) noexcept {
-  f.current = wire::get_i16(i) * current_lsb;
-  f.velocity = static_cast<std::int32_t>(wire::get_u32(i + 2)) * kVelocityLsb;
-  f.position = static_cast<std::int32_t>(wire::get_u32(i + 6)) * kPositionLsb;
+  f.tick = wire::get_u16(i);
+  f.current = wire::get_i16(i + (kRegPresentCurrent - kFeedbackAddress)) * current_lsb;
+  f.velocity = static_cast<std::int32_t>(wire::get_u32(i + (kRegPresentVelocity - kFeedbackAddress))) * kVelocityLsb;
+  f.position = static_cast<std::int32_t>(wire::get_u32(i + (kRegPresentPosition - kFeedbackAddress))) * kPositionLsb;
 }
 
 std::int16_t goal_current(double tau, double k_t, double current_lsb, std::uint16_t limit,

@@ -46,6 +46,46 @@ std::string hw_error_text(std::uint8_t hw) {
 }
 }  // namespace
 
+// ---- Realtime Tick ----------------------------------------------------------------------------------
+namespace {
+std::int64_t wrap_tick(std::int64_t x) noexcept {  // into [−16.384 s, 16.384 s)
+  constexpr std::int64_t w = XSeriesTickClock::kWrapNs;
+  x %= w;
+  if (x < 0) x += w;
+  return x >= w / 2 ? x - w : x;
+}
+constexpr std::int64_t kNone = INT64_MAX;
+}  // namespace
+
+std::int64_t XSeriesTickClock::d(std::uint16_t tick, std::int64_t t_ns) const noexcept {
+  return wrap_tick(std::int64_t{tick % dxl::x::kTickWrap} * kTickNs - t_ns % kWrapNs - ref_);
+}
+
+void XSeriesTickClock::learn(std::uint16_t tick, std::int64_t t_ns) noexcept {
+  if (!seeded_) {
+    seeded_ = true;
+    ref_ = 0;
+    ref_ = d(tick, t_ns);
+    cur_min_ = 0;
+    prev_min_ = kNone;
+    count_ = 1;
+    return;
+  }
+  cur_min_ = std::min(cur_min_, d(tick, t_ns));
+  if (++count_ < kBlock) return;
+  // A new block: the kept minimum over the last two (the clocks drift apart by up to ~50 ppm,
+  // 13 µs over a block at 500 Hz), and everything re-anchored on it (no wrap however long it runs).
+  const std::int64_t kept = std::min(cur_min_, prev_min_);
+  ref_ = wrap_tick(ref_ + kept);
+  prev_min_ = cur_min_ - kept;
+  cur_min_ = kNone;
+  count_ = 0;
+}
+
+std::int64_t XSeriesTickClock::place(std::uint16_t tick, std::int64_t t_ns) const noexcept {
+  return wrap_tick(d(tick, t_ns) - std::min(cur_min_, prev_min_));
+}
+
 XSeriesDriver::XSeriesDriver(int fd, const SerialConfig& cfg)
     : fd_(fd), joints_(cfg.joints), baud_(cfg.baud), sensor_offset_(cfg.sensor_id_offset),
       k_t_(cfg.torque_constant), set_mode_(cfg.set_operating_mode),
@@ -227,6 +267,12 @@ void XSeriesDriver::configure(std::int64_t reply_timeout_ns) {
     lsb_[ju] = xseries_current_lsb(who.model);
     check_id_baud(j, false, t[dxl::x::kRegId], t[dxl::x::kRegBaud]);
     check_hw(j, false);
+    seed_tick(j, reply_timeout_ns);
+  }
+  // Every servo identified and its clock known before anything is written.
+  for (int j = 0; j < joints_; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    XSeriesIdentity& who = identity_[ju];
     // Torque off (the EEPROM area is written only so), then current control and return delay.
     write_registers(j, false, dxl::x::kRegTorqueEnable, {0}, reply_timeout_ns);
     torque_on_[ju] = false;
@@ -270,6 +316,34 @@ void XSeriesDriver::configure(std::int64_t reply_timeout_ns) {
   link_.clear();
 }
 
+// A servo's Realtime Tick against the host's clock, before any answer can be late: Reads of
+// register 120, each taken as sampled when the Read had crossed the line (as a Bulk Read's
+// sample); the kept minimum drops the ones the host or the link delayed. Spread over ≈ 5 ms so
+// the tick's phase varies.
+void XSeriesDriver::seed_tick(int j, std::int64_t reply_timeout_ns) {
+  std::size_t n = 0;
+  std::array<std::uint8_t, dxl::kMaxPacket> req{};
+  const auto id = static_cast<std::uint8_t>(j + 1);
+  dxl::build_read(id, dxl::x::kRegRealtimeTick, 2, std::span<std::uint8_t>(req.data(), req.size()), n);
+  XSeriesTickClock& clock = tick_[static_cast<std::size_t>(j)];
+  clock = XSeriesTickClock{};
+  for (int round = 0; round < kTickSeedReads; ++round) {
+    const std::int64_t sent = detail::monotonic_ns();
+    if (link_.transact(req.data(), n, id, reply_timeout_ns, 2)) {
+      const dxl::Packet& p = link_.packet();
+      if ((p.error & 0x7F) == 0 && p.param_count == 2)
+        clock.learn(wire::get_u16(p.params.data()), sent + wire_ns(n));
+    }
+    const timespec gap = detail::to_timespec(300'000);
+    ::clock_nanosleep(CLOCK_MONOTONIC, 0, &gap, nullptr);
+  }
+  if (!clock.seeded())
+    throw std::runtime_error(name(j, false) + ": no answer to " + std::to_string(kTickSeedReads) +
+                             " Reads of " + register_name(false, dxl::x::kRegRealtimeTick) +
+                             ", expected its millisecond counter (it tells which Bulk Read an "
+                             "answer is)");
+}
+
 // ---- Cycle -----------------------------------------------------------------------------------------
 XSeriesDriver::Dev XSeriesDriver::device_of(std::uint8_t id, int& j) const noexcept {
   if (id >= 1 && id <= joints_) {
@@ -311,11 +385,6 @@ void XSeriesDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns,
     }
     return;
   }
-  const bool servo = dev == Dev::kServo;
-  if (p.param_count != (servo ? dxl::x::kFeedbackSize : 2u)) {
-    ++counters_.malformed;
-    return;
-  }
   // A status packet carries no cycle counter: what was waiting before the request answers an
   // older Bulk Read — taken as the previous one's (kept for a joint without a fresh answer) —, what
   // comes after the deadline is late (read at the next cycle's start is too late now: dropped);
@@ -323,12 +392,55 @@ void XSeriesDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns,
   // (late), and the newer one is kept.
   // An answer received before this request's last byte could have crossed the line and a status
   // packet come back is no answer to it either: an older one, delivered late (a loaded host).
-  const bool older = before_request || stamp_ns < sample_ns_ + min_reply_ns_;
+  // Beyond those physical bounds the servo's Realtime Tick says which Bulk Read an answer is
+  // (XSeriesTickClock): this one's (taken late by more than the tick's resolution: its values,
+  // no time), the previous one's (a late answer), or older still (dropped). A sensor's answer
+  // follows its servo's in the Bulk Read, so it is the Bulk Read of its servo's last answer.
+  const bool servo = dev == Dev::kServo;
+  if (p.param_count != (servo ? dxl::x::kFeedbackSize : 2u)) {
+    ++counters_.malformed;
+    return;
+  }
+  dxl::x::PresentValues sv{};
+  if (servo) dxl::x::decode_present_values(p.params.data(), lsb_[ju], sv);
+  const bool ticks = tick_[ju].seeded();
+  bool older = before_request || stamp_ns < sample_ns_ + min_reply_ns_;
+  bool untimed = false;
+  if (ticks) {
+    std::uint64_t req = 0;  // the Bulk Read it answers: cycle_ (this one), cycle_ − 1, 0 older
+    if (servo) {
+      const auto fits = [](std::int64_t e) { return e >= -kTickSlackNs && e < XSeriesTickClock::kTickNs + kTickSlackNs; };
+      // Before this request, sample_ns_ is still the previous Bulk Read's time.
+      const std::int64_t e = tick_[ju].place(sv.tick, sample_ns_);
+      const std::int64_t e_prev = before_request ? e : tick_[ju].place(sv.tick, prev_sample_ns_);
+      if (!before_request && fits(e)) {
+        req = cycle_;
+      } else if (!before_request && e >= XSeriesTickClock::kTickNs + kTickSlackNs) {
+        req = cycle_;
+        untimed = true;
+      } else if (fits(e_prev)) {
+        req = cycle_ - 1;
+      }
+      if (untimed) ++tick_delayed_;
+      if (req == 0) ++tick_stale_;
+      servo_req_[ju] = req;
+      servo_untimed_[ju] = untimed;
+    } else {
+      req = servo_req_[ju];
+      untimed = servo_untimed_[ju];
+    }
+    if (req == 0) {  // an answer to a Bulk Read before the previous one: nothing to use
+      ++counters_.late;
+      status_[ju] |= kStatusLate;
+      return;
+    }
+    older = older || req != cycle_;
+  }
   if (older || stamp_ns > deadline_ns_) {
     ++counters_.late;
     status_[ju] |= kStatusLate;
     if (older && servo) {
-      dxl::x::decode_present_values(p.params.data(), lsb_[ju], late_servo_[ju]);
+      late_servo_[ju] = sv;
       late_servo_got_[ju] = true;
     } else if (older) {
       late_sensor_[ju] = wire::get_i16(p.params.data()) * wire::kDeflectionLsb;
@@ -346,7 +458,10 @@ void XSeriesDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns,
   got = true;
   if (stamp_ns > stamp_ns_) stamp_ns_ = stamp_ns;
   if (servo) {
-    dxl::x::decode_present_values(p.params.data(), lsb_[ju], servo_[ju]);
+    servo_[ju] = sv;
+    untimed_[ju] = untimed;
+    // A servo answer taken when the host said: its tick joins the kept minimum.
+    if (ticks && !untimed) tick_[ju].learn(sv.tick, sample_ns_);
     // The alert bit: a Hardware Error Status ≠ 0, and an X-series servo then holds torque off.
     alert_[ju] = static_cast<std::uint16_t>(
         (alert_[ju] & ~kStatusTorqueOff) | ((p.error & dxl::kErrAlert) ? kStatusTorqueOff : 0));
@@ -365,6 +480,7 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
     status_[ju] = 0;
     got_servo_[ju] = got_sensor_[ju] = false;
     late_servo_got_[ju] = late_sensor_got_[ju] = false;
+    untimed_[ju] = false;
   }
   fresh_packets_ = 0;
   stamp_ns_ = 0;
@@ -422,6 +538,13 @@ IoStatus XSeriesDriver::read(std::int64_t /*now_ns*/, std::int64_t deadline_ns, 
     };
     if (got_servo_[ju] && got_sensor_[ju]) {
       hand_out(servo_[ju], sensor_[ju], sample_ns_, applied_seq_, applied_ns_, 0);
+      if (untimed_[ju]) {
+        // This Bulk Read's values, sampled later than the host can say (the request was
+        // delivered late): the law uses them, the observer bridges them (no time).
+        st |= kStatusNoTiming;
+        out.sample_ns[ju] = 0;
+        out.applied_ns[ju] = 0;
+      }
       ++fresh;
     } else if (late_servo_got_[ju] && late_sensor_got_[ju] && prev_sample_ns_ > handed_ns_[ju]) {
       // No fresh answer, but the previous Bulk Read's came late: an older sample, at its time.

@@ -456,9 +456,19 @@ TEST(DxlXSeriesBus, ServoInCurrentModeAndSensorAnswer) {
   ASSERT_TRUE(a && b);
   EXPECT_EQ(a->id, 1);
   ASSERT_EQ(a->param_count, dxl::x::kFeedbackSize);
-  EXPECT_EQ(pd::wire::get_i16(a->params.data()), 100);  // present current = goal
+  EXPECT_EQ(pd::wire::get_i16(a->params.data() + (dxl::x::kRegPresentCurrent - dxl::x::kFeedbackAddress)),
+            100);  // present current = goal
   EXPECT_EQ(b->id, 101);
   EXPECT_EQ(b->param_count, 2u);
+  // The Realtime Tick (120: 1 ms, mod 32768) runs with the clock from power-on, in a Read and in
+  // the Bulk Read's answer (its sample's): a Read after it, and one 20 ms later.
+  const std::uint32_t bulk_tick = pd::wire::get_u16(a->params.data());
+  const std::uint32_t t1 = value(*host.read(1, dxl::x::kRegRealtimeTick, 2));
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const std::uint32_t t2 = value(*host.read(1, dxl::x::kRegRealtimeTick, 2));
+  EXPECT_LT((t1 + 32768 - bulk_tick) % 32768, 100u) << bulk_tick << " then " << t1;
+  EXPECT_GE((t2 + 32768 - t1) % 32768, 20u) << t1 << " then " << t2;
+  EXPECT_LT((t2 + 32768 - t1) % 32768, 200u) << t1 << " then " << t2;
   stop = true;
   th.join();
   ::close(master);

@@ -243,12 +243,14 @@ TEST(Dynamixel, ControlTableRules) {
 // The X-series' units (XM430-W350 e-Manual): 4096 counts per revolution, 0.229 rev/min, 2.69 mA.
 TEST(DynamixelX, PresentValueUnitsAndGoalCurrent) {
   namespace x = dxl::x;
-  std::uint8_t raw[x::kFeedbackSize];
-  pd::wire::put_i16(raw, -100);                                        // −269 mA
-  pd::wire::put_u32(raw + 2, static_cast<std::uint32_t>(-262));        // −60 rev/min
-  pd::wire::put_u32(raw + 6, 1024);                                    // a quarter turn
+  std::uint8_t raw[x::kFeedbackSize]{};
+  pd::wire::put_u16(raw, 32767);                                       // the tick's last value
+  pd::wire::put_i16(raw + 6, -100);                                    // −269 mA
+  pd::wire::put_u32(raw + 8, static_cast<std::uint32_t>(-262));        // −60 rev/min
+  pd::wire::put_u32(raw + 12, 1024);                                   // a quarter turn
   x::PresentValues f{};
   x::decode_present_values(raw, x::kCurrentLsbXM430, f);
+  EXPECT_EQ(f.tick, 32767);
   EXPECT_NEAR(f.current, -0.269, 1e-12);
   EXPECT_NEAR(f.velocity, -262 * 0.229 * 2 * M_PI / 60, 1e-9);
   EXPECT_NEAR(f.velocity, -2 * M_PI, 0.01);  // ≈ −1 rev/s
@@ -262,7 +264,9 @@ TEST(DynamixelX, PresentValueUnitsAndGoalCurrent) {
   flags = 0;
   EXPECT_EQ(x::goal_current(std::nan(""), 1.78, x::kCurrentLsbXM430, 1193, flags), 0);
   EXPECT_EQ(flags, pd::wire::kQuantNotFinite);
-  // The feedback read spans Present Current … Present Position, as the e-Manual's addresses.
+  // The feedback read spans Realtime Tick … Present Position, as the e-Manual's addresses.
+  EXPECT_EQ(x::kFeedbackAddress, 120);
+  EXPECT_EQ(x::kRegPresentCurrent, x::kRegRealtimeTick + 6);
   EXPECT_EQ(x::kRegPresentVelocity, x::kRegPresentCurrent + 2);
   EXPECT_EQ(x::kRegPresentPosition, x::kRegPresentVelocity + 4);
   EXPECT_EQ(x::kFeedbackAddress + x::kFeedbackSize, x::kRegPresentPosition + 4u);

@@ -16,6 +16,8 @@
 #include <string>
 #include <system_error>
 #include <thread>
+#include <algorithm>
+#include <random>
 #include <vector>
 
 #include "cycle_harness.hpp"
@@ -158,6 +160,12 @@ TEST(XSeriesDriver, CycleAppliesTheHostLawAsGoalCurrentWithHostTiming) {
     ASSERT_EQ(fb.timing, pd::FeedbackTiming::kModule);
     for (int j = 0; j < joints; ++j) {
       if (fb.status[j] & (pd::kStatusMissing | pd::kStatusLate)) continue;  // late: its own test
+      // Sampled later than the host can say (its request delivered late, the servo's Realtime
+      // Tick says so: a loaded machine's pty): its values without a time — its own test.
+      if (fb.status[j] & pd::kStatusNoTiming) {
+        EXPECT_EQ(fb.sample_ns[j], 0);
+        continue;
+      }
       ++fresh;
       // Sampled when the Bulk Read arrived: inside this read() call.
       if (fb.sample_ns[j] > read_start && fb.sample_ns[j] < read_end) ++sample_inside;
@@ -252,12 +260,13 @@ TEST(XSeriesDriver, SafeStopTurnsTheTorqueOff) {
 }
 
 TEST(XSeriesDriver, BusBudgetCountsTheBulkReadAndBothDevices) {
-  // 5 joints at 4 Mbaud: Bulk Read 77 + 5 × (25 + 14) + Sync Write 35 = 307 bytes, 10 return
-  // delays of 20 µs: 968 µs. Fits at 500 Hz, not at 1 kHz (80 %).
-  EXPECT_EQ(pd::xseries_bytes_per_cycle(5), 307);
+  // 5 joints at 4 Mbaud: Bulk Read 77 + 5 × (33 + 14) + Sync Write 35 = 347 bytes (a servo's
+  // answer: Realtime Tick … Present Position, 16 bytes, worst-case stuffing), 10 return delays of
+  // 20 µs: 1068 µs. Fits at 500 Hz, not at 1 kHz (80 %).
+  EXPECT_EQ(pd::xseries_bytes_per_cycle(5), 347);
   pd::SerialBusSpec s{5, 2e-3, 4'000'000, 20e-6, 0.0, 0.8};
   s.x_series = true;
-  EXPECT_NEAR(pd::serial_bus_budget(s).time_needed_s, 307 * 10.0 / 4e6 + 10 * 20e-6, 1e-12);
+  EXPECT_NEAR(pd::serial_bus_budget(s).time_needed_s, 347 * 10.0 / 4e6 + 10 * 20e-6, 1e-12);
   EXPECT_TRUE(pd::serial_bus_budget(s).fits);
   s.period_s = 1e-3;
   try {
@@ -363,6 +372,110 @@ TEST(XSeriesDriver, LateAnswersAreThePreviousSampleAtItsTime) {
   EXPECT_EQ(at_previous_time, late_samples);
   EXPECT_GE(c.late_used, static_cast<std::uint64_t>(late_samples));
   EXPECT_GE(c.late, c.late_used * 2) << "servo and sensor answers";
+}
+
+// The tick clock alone: a servo whose millisecond counter runs 50 ppm fast against the host's,
+// from an arbitrary offset, sampled every 2 ms (± 0.3 ms of host jitter) for 70 s — across two
+// wraps of the 32768-ms counter. Every on-time sample lands in [0, 1 ms) once the first block is
+// in (the phase is learnt; ± the drift over its window), a sample taken 3 ms late ≥ 2 ms, the previous period's ≤ −1 ms.
+TEST(XSeriesTickClock, PlacesSamplesAcrossWrapsAndDrift) {
+  pd::XSeriesTickClock c;
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<std::int64_t> jitter(-300'000, 300'000);
+  const std::int64_t host0 = 123'456'789'000, servo0_ns = 31'000'000'000;  // near a wrap
+  const auto tick_at = [&](std::int64_t host) {  // the servo's counter when the host says `host`
+    const double servo_ns = servo0_ns + static_cast<double>(host - host0) * (1.0 + 50e-6);
+    return static_cast<std::uint16_t>(static_cast<std::int64_t>(std::floor(servo_ns / 1e6)) % 32768);
+  };
+  for (int i = 0; i < 16; ++i) {  // the seed: Reads at configuration
+    const std::int64_t t = host0 + i * 300'000;
+    c.learn(tick_at(t), t);
+  }
+  std::int64_t lo = INT64_MAX, hi = INT64_MIN, late_min = INT64_MAX, prev_max = INT64_MIN;
+  for (std::int64_t k = 1; k < 35'000; ++k) {
+    const std::int64_t t = host0 + 5'000'000 + k * 2'000'000 + jitter(rng);
+    const std::int64_t e = c.place(tick_at(t), t);
+    if (k > pd::XSeriesTickClock::kBlock) lo = std::min(lo, e), hi = std::max(hi, e);
+    late_min = std::min(late_min, c.place(tick_at(t + 3'000'000), t));
+    prev_max = std::max(prev_max, c.place(tick_at(t - 2'000'000), t));
+    c.learn(tick_at(t), t);
+  }
+  std::printf("[xseries] tick clock over 70 s: on time %.3f … %.3f ms, 3 ms late ≥ %.3f ms, a "
+              "period older ≤ %.3f ms\n", lo * 1e-6, hi * 1e-6, late_min * 1e-6, prev_max * 1e-6);
+  // [0, 1 ms) widened by the drift over the kept minimum's two blocks (50 ppm × 1 s = 50 µs).
+  EXPECT_GE(lo, -100'000);
+  EXPECT_LT(hi, 1'100'000);
+  EXPECT_GE(late_min, 1'950'000);
+  EXPECT_LE(prev_max, -950'000);
+}
+
+// An answer that a slow link delivers after the next cycle's request (here every one, 2.5 ms after
+// its Bulk Read, in 2 ms cycles) has no cycle counter to say it is the previous Bulk Read's: by the
+// time it came it would pass for this cycle's, 2 ms off (PROTOCOL.md §3.6 limit (a) before the
+// tick). The servo's Realtime Tick, read with it, places it: the previous Bulk Read's, handed out
+// at that one's time. The plant turns at a constant rate (1 N·m on b = 0.05: 20 rad/s), so a
+// sample's β says when it was taken to the position's LSB (77 µs): every sample handed out with a
+// time is within the tick's resolution of it.
+TEST(XSeriesDriver, TheRealtimeTickTellsAnAnswerDeliveredACycleLateFromThisCycles) {
+  const int joints = 2, cycles = 100;
+  pd::FaultConfig f;
+  f.reply_latency_ns = 2'500'000;
+  XRig rig(joints, x_config(joints), {}, f);
+  rig.drv->configure_modules();
+  ASSERT_TRUE(rig.x().tick_clock(0).seeded());
+  pd::Feedback fb{};
+  pd::Command cmd{};
+  cmd.joints = joints;
+  for (int j = 0; j < joints; ++j) cmd.tau[j] = 1.0;
+  struct Timed { double beta; std::int64_t t; bool late; };
+  std::vector<Timed> timed[2];
+  std::int64_t t0 = pedalwave::test::now_ns();
+  for (int i = 0; i < cycles; ++i) {
+    rig.drv->read(t0, t0 + 1'600'000, fb);
+    for (int j = 0; j < joints; ++j)
+      if (!(fb.status[j] & pd::kStatusMissing) && fb.sample_ns[j] != 0 && i > 2)
+        timed[j].push_back({fb.beta[j], fb.sample_ns[j], (fb.status[j] & pd::kStatusLate) != 0});
+    cmd.seq = static_cast<std::uint64_t>(i + 1);
+    ASSERT_EQ(rig.drv->write(cmd), pd::IoStatus::kOk);
+    t0 += 2 * kMs;
+    if (t0 < pedalwave::test::now_ns()) t0 = pedalwave::test::now_ns();
+    pedalwave::test::sleep_until(t0);
+  }
+  rig.stop = true;
+  rig.th.join();
+  rig.th = std::thread([] {});
+  const double rate = rig.plant.last_command().tau[0] / 0.05;  // [rad/s]
+  ASSERT_NEAR(rate, 20.0, 0.1);
+  // The plant's last sample and when it was taken: β there, the rate back from it, tell when any
+  // β of the run was.
+  const std::int64_t t_last = rig.emu->bank().sample().stamp_ns;
+  for (int j = 0; j < joints; ++j) {
+    const double beta_last = rig.plant.last_measured().beta[j];
+    const auto& v = timed[static_cast<std::size_t>(j)];
+    // A loaded machine delays some answers further (missing, or no time): most come.
+    ASSERT_GE(v.size(), static_cast<std::size_t>(cycles / 4)) << j;
+    std::vector<double> err;
+    int late = 0;
+    for (const Timed& x : v) {
+      const double taken = static_cast<double>(t_last) - 1e9 * (beta_last - x.beta) / rate;  // [ns]
+      err.push_back(std::abs(static_cast<double>(x.t) - taken) * 1e-9);
+      late += x.late;
+    }
+    std::vector<double> sorted = err;
+    std::sort(sorted.begin(), sorted.end());
+    const double median = sorted[sorted.size() / 2], worst = sorted.back();
+    std::printf("[xseries] joint %d: %zu samples with a time (%d the previous Bulk Read's), time "
+                "error median %.3f ms, worst %.3f ms; tick: %llu answers sampled late (no time), "
+                "%llu older\n",
+                j + 1, v.size(), late, 1e3 * median, 1e3 * worst,
+                static_cast<unsigned long long>(rig.x().tick_delayed()),
+                static_cast<unsigned long long>(rig.x().tick_stale()));
+    // An answer taken for this cycle's is 2 ms off. Bounds: the position's LSB (77 µs) and the
+    // pty's delivery (median), the tick's 1 ms and 0.5 ms slack (worst).
+    EXPECT_LT(median, 0.5e-3) << j;
+    EXPECT_LT(worst, 1.6e-3) << j;
+    EXPECT_GE(late, static_cast<int>(v.size()) / 2) << "the previous Bulk Read's, at its time";
+  }
 }
 
 // The host-side PD on held samples: a servo whose answers stop (the emulator drops them: silent

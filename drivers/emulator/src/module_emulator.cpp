@@ -486,7 +486,7 @@ void CanModuleEmulator::flush(std::int64_t now) noexcept {
 
 // ---- Serial front end ---------------------------------------------------------------------------
 SerialModuleEmulator::SerialModuleEmulator(int fd, const EmulatorConfig& cfg, ModulePlant& plant)
-    : fd_(fd), bank_(cfg, plant), wire_(cfg.bus.wire) {
+    : fd_(fd), bank_(cfg, plant), wire_(cfg.bus.wire), power_on_ns_(detail::monotonic_ns()) {
   if (fd < 0 || !detail::set_nonblocking(fd))
     throw std::invalid_argument("serial module emulator: fd = " + std::to_string(fd) +
                                 ", expected an open tty/pty");
@@ -689,8 +689,20 @@ void SerialModuleEmulator::refresh(int d) noexcept {
   wire::put_u32(t.data() + dxl::x::kRegPresentPosition,
                 static_cast<std::uint32_t>(static_cast<std::int32_t>(
                     std::lround(s.beta[ju] / dxl::x::kPositionLsb))));
-  wire::put_u16(t.data() + 120, static_cast<std::uint16_t>(
-                                    (bank_.module_clock_us(j, s.stamp_ns) / 1000u) % 32768u));
+  // Realtime Tick: the servo's millisecond clock when the request it answers arrived (a Bulk
+  // Read's sample time, a Read's own).
+  wire::put_u16(t.data() + dxl::x::kRegRealtimeTick,
+                realtime_tick(j, request_ns_));
+}
+
+// The servo's millisecond counter, running from power-on (the emulator's start) at its clock's
+// rate (EmulatorConfig::clock_drift_ppm, clock_offset_us), at host time t_ns.
+std::uint16_t SerialModuleEmulator::realtime_tick(int j, std::int64_t t_ns) const noexcept {
+  const auto ju = static_cast<std::size_t>(j);
+  const EmulatorConfig& c = bank_.config();
+  const double ms = static_cast<double>(t_ns - power_on_ns_) * (1.0 + c.clock_drift_ppm[ju] * 1e-6) * 1e-6 +
+                    c.clock_offset_us[ju] * 1e-3;
+  return static_cast<std::uint16_t>(static_cast<std::uint64_t>(std::floor(std::max(ms, 0.0))) % dxl::x::kTickWrap);
 }
 
 std::uint8_t SerialModuleEmulator::read_table(int d, std::uint16_t addr, std::uint16_t len) noexcept {
@@ -792,6 +804,7 @@ void SerialModuleEmulator::handle(std::int64_t read_ns) noexcept {
   const dxl::Packet& p = pkt_;
   // The packet has reached the modules when its last byte has crossed the line.
   const std::int64_t now = wire_.occupy(read_ns, bytes_ns(packet_bytes_));
+  request_ns_ = now;
   EmulatorStats& st = bank_.stats();
   const int joints = bank_.joints();
   const bool broadcast = p.id == dxl::kBroadcastId;

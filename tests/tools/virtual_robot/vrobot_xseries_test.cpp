@@ -93,6 +93,10 @@ test::WalkResult walk_xseries(const model::Scene& sc, double duration, bool obse
     EXPECT_EQ(drv.x_series()->identity(j).operating_mode, 3) << "shipped in position control";
   }
   test::WalkResult r = test::run_walk(cfg, robot, drv, false, plots);
+  std::printf("[vrobot] x-series Realtime Tick: %llu answers sampled later than the host's time "
+              "(handed out without a time), %llu answers to an older Bulk Read (dropped)\n",
+              static_cast<unsigned long long>(drv.x_series()->tick_delayed()),
+              static_cast<unsigned long long>(drv.x_series()->tick_stale()));
   ::close(pty.slave_keep);
   return r;
 }

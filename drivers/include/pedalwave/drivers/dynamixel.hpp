@@ -243,15 +243,18 @@ inline constexpr std::uint16_t kRegStatusReturnLevel = 68; // u8  RW
 inline constexpr std::uint16_t kRegHardwareError = 70;     // u8  R
 inline constexpr std::uint16_t kRegBusWatchdog = 98;       // i8  RW [20 ms], 0 off, −1 = expired
 inline constexpr std::uint16_t kRegGoalCurrent = 102;      // i16 RW [current LSB]
+inline constexpr std::uint16_t kRegRealtimeTick = 120;     // u16 R  [1 ms], wraps at 32767
 inline constexpr std::uint16_t kRegPresentCurrent = 126;   // i16 R  [current LSB]
 inline constexpr std::uint16_t kRegPresentVelocity = 128;  // i32 R  [0.229 rev/min]
 inline constexpr std::uint16_t kRegPresentPosition = 132;  // i32 R  [4096 per rev]
 inline constexpr std::uint8_t kOperatingModeCurrent = 0;
 inline constexpr std::uint16_t kModelXM430W350 = 1020;
 inline constexpr std::uint16_t kModelXM430W210 = 1030;
-// Present Current … Present Position in one read: 126 … 135.
-inline constexpr std::uint16_t kFeedbackAddress = kRegPresentCurrent;
-inline constexpr std::size_t kFeedbackSize = 10;
+// Realtime Tick … Present Position in one read: 120 … 135 (122 … 125, Moving, Moving Status and
+// Present PWM, come along unused: one contiguous range).
+inline constexpr std::uint16_t kFeedbackAddress = kRegRealtimeTick;
+inline constexpr std::size_t kFeedbackSize = 16;
+inline constexpr std::uint16_t kTickWrap = 32768;  // Realtime Tick counts 0 … 32767 [ms]
 inline constexpr double kCurrentLsbXM430 = 2.69e-3;               // [A] (XM430 e-Manual)
 inline constexpr double kVelocityLsb = 0.229 * 2.0 * 3.14159265358979323846 / 60.0;  // [rad/s]
 inline constexpr double kPositionLsb = 2.0 * 3.14159265358979323846 / 4096.0;       // [rad]
@@ -301,10 +304,11 @@ struct PresentValues {
   double current = 0.0;   // present current [A]
   double velocity = 0.0;  // present velocity, output shaft [rad/s]
   double position = 0.0;  // present position, output shaft, 0 at count 0 [rad]
+  std::uint16_t tick = 0; // Realtime Tick when the servo sampled them [ms, mod 32768]
 };
-// The 10 bytes at 126 (Present Current i16, Velocity i32, Position i32) → SI, with the
-// servo's current LSB [A].
-void decode_present_values(const std::uint8_t* in10, double current_lsb, PresentValues& f) noexcept;
+// The 16 bytes at 120 (Realtime Tick u16, 4 unused, Present Current i16, Velocity i32, Position
+// i32) → SI, with the servo's current LSB [A].
+void decode_present_values(const std::uint8_t* in16, double current_lsb, PresentValues& f) noexcept;
 // Goal Current for output torque tau [N·m] through torque constant k_t [N·m/A]: rounded to the
 // LSB and saturated at ±limit LSB (the servo's Current Limit, register 38); NaN → 0. Returns
 // wire::kQuantClamped / kQuantNotFinite bits as the other encoders.

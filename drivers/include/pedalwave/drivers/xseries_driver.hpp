@@ -64,6 +64,36 @@ struct XSeriesIdentity {
 const char* xseries_model_name(std::uint16_t model) noexcept;
 double xseries_current_lsb(std::uint16_t model) noexcept;
 
+// Where a servo's Realtime Tick (register 120: its millisecond counter, mod 32768) puts the sample
+// it came with, against the host's time for it (PROTOCOL.md §3.6, "Which Bulk Read an answer
+// is"). A status packet carries no cycle counter, so on a link that delivers late (a loaded
+// host's pty, a USB adapter's latency timer) an answer to an older Bulk Read can arrive after this
+// cycle's request and pass for this cycle's; the tick tells them apart to its resolution.
+//   d = tick · 1 ms − t_host (mod 32.768 s), kept = min d over the samples taken when the host
+//   said (two blocks of kBlock, so it follows the clocks' drift), e = d − kept:
+//   a sample taken at t_host: 0 ≤ e < 1 ms (the tick's phase); taken δ later: ≈ δ … δ + 1 ms;
+//   an older request's (m periods back): ≈ −m·period … −m·period + 1 ms.
+// seed() before the loop (bracketed Reads of the tick at configuration) gives kept a start that
+// no late answer has touched; place() is then meaningful. Allocation-free, O(1).
+class XSeriesTickClock {
+ public:
+  static constexpr std::int64_t kTickNs = 1'000'000;
+  static constexpr std::int64_t kWrapNs = std::int64_t{dxl::x::kTickWrap} * kTickNs;
+  static constexpr int kBlock = 256;  // samples per block of the kept minimum [-]
+  // A sample taken at t_ns reported tick: d into the kept minimum (also before seeded()).
+  void learn(std::uint16_t tick, std::int64_t t_ns) noexcept;
+  bool seeded() const noexcept { return seeded_; }
+  // e [ns] for a sample reported with tick, against host time t_ns (0 … 1 ms: taken then).
+  std::int64_t place(std::uint16_t tick, std::int64_t t_ns) const noexcept;
+
+ private:
+  std::int64_t d(std::uint16_t tick, std::int64_t t_ns) const noexcept;  // relative to ref_
+  bool seeded_ = false;
+  std::int64_t ref_ = 0;                  // the first d (absolute), all else relative to it [ns]
+  std::int64_t cur_min_ = 0, prev_min_ = 0;  // this block's and the last block's minimum [ns]
+  int count_ = 0;                         // samples in this block [-]
+};
+
 class XSeriesDriver final : public Driver, private DxlPacketSink {
  public:
   // Takes ownership of fd (a tty or pty slave in raw mode). Checks cfg (joints, sensor IDs clear
@@ -88,6 +118,11 @@ class XSeriesDriver final : public Driver, private DxlPacketSink {
   // Present Position / Velocity LSBs, the sensor's deflection LSB, Goal Current LSB × k_t, and
   // SerialConfig::max_stale_cycles as the stale limit of the host-side PD.
   FeedbackSpec feedback_spec() const override;
+  // Answers the servos' Realtime Tick placed: sampled ≥ 0.5 ms later than the host's time for
+  // them (given no time), and answers to a Bulk Read before the previous one (dropped) [-].
+  std::uint64_t tick_delayed() const { return tick_delayed_; }
+  std::uint64_t tick_stale() const { return tick_stale_; }
+  const XSeriesTickClock& tick_clock(int j) const { return tick_[static_cast<std::size_t>(j)]; }
 
  private:
   enum class Dev : std::uint8_t { kNone, kServo, kSensor };
@@ -102,6 +137,7 @@ class XSeriesDriver final : public Driver, private DxlPacketSink {
   void write_registers(int j, bool sensor, std::uint16_t addr,
                        const std::vector<std::uint8_t>& data, std::int64_t timeout_ns);
   std::int64_t wire_ns(std::size_t bytes) const noexcept;
+  void seed_tick(int j, std::int64_t reply_timeout_ns);
 
   int fd_ = -1;
   int joints_ = 0;
@@ -156,6 +192,15 @@ class XSeriesDriver final : public Driver, private DxlPacketSink {
   std::size_t bulk_len_ = 0;
   std::int64_t bulk_wire_ns_ = 0;
   std::int64_t min_reply_ns_ = 0;  // wire time of the shortest status packet [ns]
+  // Which Bulk Read an answer is (the servos' Realtime Tick): per servo its clock, the Bulk Read
+  // (cycle_ numbering; 0: older than the previous one) its last answer belonged to and whether it
+  // was sampled later than the host can say (then the sensor's answer after it is the same).
+  static constexpr int kTickSeedReads = 16;           // Reads of the tick at configuration [-]
+  static constexpr std::int64_t kTickSlackNs = 500'000;  // beyond the tick's 1 ms [ns]
+  std::array<XSeriesTickClock, kMaxJoints> tick_{};
+  std::array<std::uint64_t, kMaxJoints> servo_req_{};
+  std::array<bool, kMaxJoints> servo_untimed_{}, untimed_{};
+  std::uint64_t tick_delayed_ = 0, tick_stale_ = 0;
   std::array<std::uint8_t, 3 * dxl::kMaxPacket> tx_{};
   std::array<std::uint8_t, kMaxJoints * 2> data_{};
   std::array<std::uint8_t, kMaxJoints> sel_ids_{};

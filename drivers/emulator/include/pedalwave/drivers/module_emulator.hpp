@@ -367,6 +367,7 @@ class SerialModuleEmulator {
   std::span<const dxl::Register> registers(int d) const noexcept;
   std::uint16_t table_size(int d) const noexcept;
   void refresh(int d) noexcept;                  // live registers (torque, errors, feedback)
+  std::uint16_t realtime_tick(int j, std::int64_t t_ns) const noexcept;  // register 120 [ms]
   std::uint8_t read_table(int d, std::uint16_t addr, std::uint16_t len) noexcept;  // → reply_
   std::uint8_t write_table(int d, std::uint16_t addr, std::span<const std::uint8_t> data,
                            std::int64_t now) noexcept;
@@ -384,6 +385,8 @@ class SerialModuleEmulator {
   ModuleBank bank_;
   WireClock wire_;
   std::size_t packet_bytes_ = 0;  // bytes of the packet being handled (as received) [-]
+  std::int64_t request_ns_ = 0;   // when the packet being handled arrived (its last byte) [ns]
+  std::int64_t power_on_ns_ = 0;  // (set at construction) the servos' Realtime Tick counts from here
   std::array<std::uint8_t, 4096> rx_{};
   dxl::Packet pkt_{};
   std::size_t rx_len_ = 0;

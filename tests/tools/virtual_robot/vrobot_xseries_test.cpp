@@ -58,7 +58,7 @@ config::DaemonConfig xseries_config(const std::string& driver, double rate, doub
   return c;
 }
 
-constexpr double kRate = 500;  // [Hz]: 5 servos + 5 sensors fill 968 µs of the 2 ms cycle
+constexpr double kRate = 500;  // [Hz]: 5 servos + 5 sensors fill 1068 µs of the 2 ms cycle
 
 // The X-series bus as config/runtime/xseries.yaml configures it (device: the pty, below).
 const char* kXDriver =
@@ -198,7 +198,7 @@ TEST(XSeriesWalk, StockServosWalkWithTheHostPdAndTheObserverOn) {
   EXPECT_EQ(r.emu.rx_errors, 0u);
   EXPECT_EQ(c.stale_feedback, 0u) << "no joint's sample was older than max_stale_cycles";
   // Missing joint-cycles: the load's, not the driver's (an answer the pty's kernel worker delivered
-  // after the read deadline, 1.6 ms into the 2 ms cycle, with a 968 µs exchange). Measured on this
+  // after the read deadline, 1.6 ms into the 2 ms cycle, with a 1068 µs exchange). Measured on this
   // 2-core machine at load 5–9 (other helpers' builds), servos' thread at 90: 1.1 … 4.9 % of the
   // joint-cycles (214 … 982 of 20000); with it at 70, below the loop's 80: 6 … 17 %; with the loop
   // SCHED_OTHER at load 3: 13.6 %. A broken exchange misses them all. Bound kept at 15 %: a run

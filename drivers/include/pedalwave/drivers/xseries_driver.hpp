@@ -15,7 +15,7 @@
 // Cycle: read() drains what is waiting (answers that missed the previous cycle's deadline: late;
 // a joint without a fresh answer this cycle gets them, as the previous Bulk Read's sample,
 // kStatusLate, `late_used`), sends one Bulk
-// Read (0x92) of Present Current/Velocity/Position (126, 10 bytes) from every servo and the
+// Read (0x92) of Realtime Tick … Present Position (120, 16 bytes) from every servo and the
 // deflection (124, 2 bytes) from every sensor, gathers the 2J status packets until the deadline.
 // write() evaluates the module law on the host from the last sample,
 //   u = τ + kp (β_ref − β) + kd (β̇_ref − β̇),

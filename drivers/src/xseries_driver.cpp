@@ -64,8 +64,7 @@ std::int64_t XSeriesTickClock::d(std::uint16_t tick, std::int64_t t_ns) const no
 void XSeriesTickClock::learn(std::uint16_t tick, std::int64_t t_ns) noexcept {
   if (!seeded_) {
     seeded_ = true;
-    ref_ = 0;
-    ref_ = d(tick, t_ns);
+    ref_ = wrap_tick(std::int64_t{tick % dxl::x::kTickWrap} * kTickNs - t_ns % kWrapNs);
     cur_min_ = 0;
     prev_min_ = kNone;
     count_ = 1;
@@ -424,10 +423,8 @@ void XSeriesDriver::handle_status(const dxl::Packet& p, std::int64_t stamp_ns,
       if (untimed) ++tick_delayed_;
       if (req == 0) ++tick_stale_;
       servo_req_[ju] = req;
-      servo_untimed_[ju] = untimed;
     } else {
-      req = servo_req_[ju];
-      untimed = servo_untimed_[ju];
+      req = servo_req_[ju];  // (its time, if its servo's had none, goes with the servo's flag)
     }
     if (req == 0) {  // an answer to a Bulk Read before the previous one: nothing to use
       ++counters_.late;

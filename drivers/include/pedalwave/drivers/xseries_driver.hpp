@@ -193,13 +193,14 @@ class XSeriesDriver final : public Driver, private DxlPacketSink {
   std::int64_t bulk_wire_ns_ = 0;
   std::int64_t min_reply_ns_ = 0;  // wire time of the shortest status packet [ns]
   // Which Bulk Read an answer is (the servos' Realtime Tick): per servo its clock, the Bulk Read
-  // (cycle_ numbering; 0: older than the previous one) its last answer belonged to and whether it
-  // was sampled later than the host can say (then the sensor's answer after it is the same).
+  // (cycle_ numbering; 0: older than the previous one) its last answer belonged to (the sensor's
+  // answer after it is the same Bulk Read's), and per joint whether this cycle's servo answer was
+  // sampled later than the host can say.
   static constexpr int kTickSeedReads = 16;           // Reads of the tick at configuration [-]
   static constexpr std::int64_t kTickSlackNs = 500'000;  // beyond the tick's 1 ms [ns]
   std::array<XSeriesTickClock, kMaxJoints> tick_{};
   std::array<std::uint64_t, kMaxJoints> servo_req_{};
-  std::array<bool, kMaxJoints> servo_untimed_{}, untimed_{};
+  std::array<bool, kMaxJoints> untimed_{};
   std::uint64_t tick_delayed_ = 0, tick_stale_ = 0;
   std::array<std::uint8_t, 3 * dxl::kMaxPacket> tx_{};
   std::array<std::uint8_t, kMaxJoints * 2> data_{};

@@ -203,6 +203,10 @@ struct WalkResult {
   bool all_modules_off = false;   // every module's output stage off at the end (ModuleBank)
   std::string report;             // the virtual robot's report
   std::string robot_thread;       // what the modules' thread got (SCHED_FIFO or why not)
+  // When the scene's first fault first acted, on the loop's clock (the daemon's event log's
+  // origin) [s]; NaN without one. The plant's clock starts with the first command, before the
+  // loop, so the scene's t_start reads that head start later on the loop's clock.
+  double fault_onset_loop = NAN;
 };
 
 // The in-process simulated plant (lockstep loop clock and plant: deterministic).
@@ -284,6 +288,8 @@ inline WalkResult run_walk(const config::DaemonConfig& cfg, vrobot::VirtualRobot
            st.self_stalls.load(), st.self_stall_ns.load()};
   r.plant = robot.plant().progress();
   r.plant_t = r.plant.t;
+  if (!robot.plant().faults().empty() && robot.plant().fault_onset_ns(0) != 0)
+    r.fault_onset_loop = 1e-9 * static_cast<double>(robot.plant().fault_onset_ns(0) - r.daemon.event_log.t0_ns());
   r.speed = robot.plant().forward_speed(2.0);
   r.all_modules_off = true;
   for (int j = 0; j < J; ++j) r.all_modules_off = r.all_modules_off && robot.bank().torque_off(j);

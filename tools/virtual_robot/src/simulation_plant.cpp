@@ -137,8 +137,10 @@ void SimulationPlant::note_active(double t, bool physical) {
   const std::vector<model::FaultSpec>& faults = injector_.faults();
   for (std::size_t i = 0; i < faults.size(); ++i)
     if (model::is_physical(faults[i].type) == physical &&
-        drivers::FaultInjector::active(faults[i], t) && std::isnan(onset_t_[i].load(kRelaxed)))
+        drivers::FaultInjector::active(faults[i], t) && std::isnan(onset_t_[i].load(kRelaxed))) {
+      onset_ns_[i].store(origin_ns_ + std::llround(t * 1e9), kRelaxed);
       onset_t_[i].store(t, kRelaxed);
+    }
 }
 
 void SimulationPlant::advance_to(std::int64_t t_ns) {

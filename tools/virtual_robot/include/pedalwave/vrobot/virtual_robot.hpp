@@ -96,6 +96,9 @@ class SimulationPlant final : public drivers::ModulePlant {
   const std::vector<model::FaultSpec>& skipped_faults() const { return skipped_; }
   // Plant time at which applied fault i first acted [s]; NaN while it has not (any thread).
   double fault_onset(std::size_t i) const { return onset_t_[i].load(std::memory_order_relaxed); }
+  // The host's CLOCK_MONOTONIC then [ns] (plant time 0's host time, moved by the holds before it):
+  // to compare the onset with the loop's clock. 0 while it has not acted.
+  std::int64_t fault_onset_ns(std::size_t i) const { return onset_ns_[i].load(std::memory_order_relaxed); }
 
   int joints() const { return joints_; }
   PlantProgress progress() const;
@@ -134,6 +137,7 @@ class SimulationPlant final : public drivers::ModulePlant {
   drivers::FaultInjector injector_;      // the scene's faults applied inside the modules
   std::vector<model::FaultSpec> skipped_;
   std::array<std::atomic<double>, drivers::FaultInjector::kMaxFaults> onset_t_{};
+  std::array<std::atomic<std::int64_t>, drivers::FaultInjector::kMaxFaults> onset_ns_{};
 };
 
 // One fault as text, joints 1-based: "encoder_stuck on joint 3 from 4.0 s",

@@ -16,7 +16,7 @@
 #include <system_error>
 
 #include "pedalwave/drivers/bus_budget.hpp"
-#include "pedalwave/drivers/can_receive.hpp"
+#include "pedalwave/drivers/can_io.hpp"
 #include "pedalwave/drivers/posix_util.hpp"
 
 namespace pedalwave::drivers {
@@ -149,19 +149,19 @@ cia402::State CanOpenDriver::drive_state(int j) const {
 void CanOpenDriver::send_blocking(const can_frame& f) {
   const std::int64_t give_up = detail::monotonic_ns() + 100'000'000;
   for (;;) {
-    const ssize_t r = ::send(fd_, &f, CAN_MTU, MSG_DONTWAIT | MSG_NOSIGNAL);
-    if (r == static_cast<ssize_t>(CAN_MTU)) {
+    const Send s = send_frame(fd_, &f, CAN_MTU);
+    if (s == Send::kSent) {
       ++counters_.frames_tx;
       return;
     }
-    if (r < 0 && errno == EINTR) continue;
-    if (r < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS) && detail::monotonic_ns() < give_up) {
+    const int err = errno;
+    if (s == Send::kFull && detail::monotonic_ns() < give_up) {
       pollfd p{fd_, POLLOUT, 0};
       const timespec ts = detail::to_timespec(1'000'000);
       ::ppoll(&p, 1, &ts, nullptr);
       continue;
     }
-    throw std::system_error(r < 0 ? errno : EIO, std::generic_category(), "CANopen: sending a frame failed");
+    throw std::system_error(err, std::generic_category(), "CANopen: sending a frame failed");
   }
 }
 
@@ -392,20 +392,16 @@ void CanOpenDriver::bring_up() {
 
 // ---- Cycle ------------------------------------------------------------------------------------------
 CanOpenDriver::Tx CanOpenDriver::send(const can_frame& f) noexcept {
-  for (;;) {
-    const ssize_t r = ::send(fd_, &f, CAN_MTU, MSG_DONTWAIT | MSG_NOSIGNAL);
-    if (r == static_cast<ssize_t>(CAN_MTU)) {
-      ++counters_.frames_tx;
-      // The bus carries the frames one after the other (the transmit queue is FIFO).
-      const std::int64_t t = detail::monotonic_ns();
-      wire_busy_ns_ = (wire_busy_ns_ > t ? wire_busy_ns_ : t) + frame_wire_ns_[f.len > 8 ? 8 : f.len];
-      return Tx::kOk;
-    }
-    if (r < 0 && errno == EINTR) continue;
-    ++counters_.tx_dropped;
-    if (r < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) return Tx::kDropped;
-    return Tx::kDown;
+  const Send s = send_frame(fd_, &f, CAN_MTU);
+  if (s == Send::kSent) {
+    ++counters_.frames_tx;
+    // The bus carries the frames one after the other (the transmit queue is FIFO).
+    const std::int64_t t = detail::monotonic_ns();
+    wire_busy_ns_ = (wire_busy_ns_ > t ? wire_busy_ns_ : t) + frame_wire_ns_[f.len > 8 ? 8 : f.len];
+    return Tx::kOk;
   }
+  ++counters_.tx_dropped;
+  return s == Send::kFull ? Tx::kDropped : Tx::kDown;
 }
 
 void CanOpenDriver::note_fault(int j, const char* fmt, unsigned a, unsigned b, const char* text) noexcept {

@@ -13,7 +13,7 @@
 #include <system_error>
 
 #include "pedalwave/drivers/bus_budget.hpp"
-#include "pedalwave/drivers/can_receive.hpp"
+#include "pedalwave/drivers/can_io.hpp"
 #include "pedalwave/drivers/posix_util.hpp"
 
 namespace pedalwave::drivers {
@@ -134,39 +134,19 @@ SocketCanDriver::~SocketCanDriver() {
 }
 
 // ---- Transmit -----------------------------------------------------------------------------------
-SocketCanDriver::Tx SocketCanDriver::send_classic(const can_frame& f) noexcept {
-  for (;;) {
-    const ssize_t r = ::send(fd_, &f, CAN_MTU, MSG_DONTWAIT | MSG_NOSIGNAL);
-    if (r == static_cast<ssize_t>(CAN_MTU)) {
-      ++counters_.frames_tx;
-      return Tx::kOk;
-    }
-    if (r < 0 && errno == EINTR) continue;
-    if (r < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) {
-      ++counters_.tx_dropped;
-      return Tx::kDropped;
-    }
-    ++counters_.tx_dropped;
-    return Tx::kDown;  // ENETDOWN, ENXIO, EPIPE, short write: the bus is gone
+SocketCanDriver::Tx SocketCanDriver::transmit(const void* f, std::size_t size) noexcept {
+  const Send s = send_frame(fd_, f, size);
+  if (s == Send::kSent) {
+    ++counters_.frames_tx;
+    return Tx::kOk;
   }
+  ++counters_.tx_dropped;
+  return s == Send::kFull ? Tx::kDropped : Tx::kDown;  // kDown: ENETDOWN, ENXIO, EPIPE, short write
 }
 
-SocketCanDriver::Tx SocketCanDriver::send_fd(const canfd_frame& f) noexcept {
-  for (;;) {
-    const ssize_t r = ::send(fd_, &f, CANFD_MTU, MSG_DONTWAIT | MSG_NOSIGNAL);
-    if (r == static_cast<ssize_t>(CANFD_MTU)) {
-      ++counters_.frames_tx;
-      return Tx::kOk;
-    }
-    if (r < 0 && errno == EINTR) continue;
-    if (r < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) {
-      ++counters_.tx_dropped;
-      return Tx::kDropped;
-    }
-    ++counters_.tx_dropped;
-    return Tx::kDown;
-  }
-}
+SocketCanDriver::Tx SocketCanDriver::send_classic(const can_frame& f) noexcept { return transmit(&f, CAN_MTU); }
+
+SocketCanDriver::Tx SocketCanDriver::send_fd(const canfd_frame& f) noexcept { return transmit(&f, CANFD_MTU); }
 
 void SocketCanDriver::note_tx(Tx t, bool& dropped, bool& down) noexcept {
   if (t == Tx::kDropped) dropped = true;

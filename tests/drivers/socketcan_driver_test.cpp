@@ -19,7 +19,7 @@
 
 #include "alloc_counter.hpp"
 #include "cycle_harness.hpp"
-#include "pedalwave/drivers/can_receive.hpp"
+#include "pedalwave/drivers/can_io.hpp"
 #include "pedalwave/drivers/can_protocol.hpp"
 #include "pedalwave/drivers/module_emulator.hpp"
 #include "pedalwave/drivers/socketcan_driver.hpp"
@@ -656,4 +656,39 @@ TEST(ReceiveFrame, TellsAStampTakenAtTheReadFromOneTakenOnEntry) {
   EXPECT_TRUE(r.stamped_at_read);
   EXPECT_GT(r.stamp_ns, before - 100'000) << "the stamp is the read's, not the send's 3 ms earlier";
   for (int fd : {sv[0], sv[1], a[0], a[1]}) ::close(fd);
+}
+
+// ---- send_frame: sent, a full transmit queue, a bus that is gone ----------------------------------
+TEST(SendFrame, TellsSentFromFullFromDown) {
+  using pedalwave::drivers::Send;
+  int sv[2];
+  ASSERT_EQ(::socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
+  can_frame f{};
+  f.can_id = 0x181;
+  f.len = 8;
+  canfd_frame g{};
+  g.can_id = 0x182;
+  g.len = 64;
+  ASSERT_EQ(pedalwave::drivers::send_frame(sv[0], &f, CAN_MTU), Send::kSent);
+  ASSERT_EQ(pedalwave::drivers::send_frame(sv[0], &g, CANFD_MTU), Send::kSent);
+  canfd_frame in{};
+  ASSERT_EQ(::recv(sv[1], &in, sizeof in, 0), static_cast<ssize_t>(CAN_MTU));
+  EXPECT_EQ(in.can_id, 0x181u);
+  ASSERT_EQ(::recv(sv[1], &in, sizeof in, 0), static_cast<ssize_t>(CANFD_MTU));
+  EXPECT_EQ(in.can_id, 0x182u);
+  // Nobody reads: the queue fills and the frame that does not fit is not sent (no block).
+  int sent = 0;
+  Send s = Send::kSent;
+  while ((s = pedalwave::drivers::send_frame(sv[0], &f, CAN_MTU)) == Send::kSent && sent < 1'000'000) ++sent;
+  EXPECT_EQ(s, Send::kFull);
+  EXPECT_GT(sent, 0);
+  ::close(sv[0]);
+  ::close(sv[1]);
+  // The peer is gone: kDown, errno says why.
+  ASSERT_EQ(::socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
+  ::close(sv[1]);
+  errno = 0;
+  EXPECT_EQ(pedalwave::drivers::send_frame(sv[0], &f, CAN_MTU), Send::kDown);
+  EXPECT_EQ(errno, EPIPE);
+  ::close(sv[0]);
 }

@@ -15,7 +15,7 @@
 #include <stdexcept>
 
 #include "pedalwave/drivers/bus_budget.hpp"
-#include "pedalwave/drivers/can_receive.hpp"
+#include "pedalwave/drivers/can_io.hpp"
 #include "pedalwave/drivers/posix_util.hpp"
 
 namespace pedalwave::drivers::canopen {
@@ -463,13 +463,12 @@ void CanOpenModuleEmulator::flush(std::int64_t now) noexcept {
       head_ = (head_ + 1) % queue_.size();
       continue;
     }
-    const ssize_t r = ::send(fd_, &p.frame, CAN_MTU, MSG_DONTWAIT | MSG_NOSIGNAL);
-    if (r < 0 && errno == EINTR) continue;
-    if (r < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) {
+    const Send s = send_frame(fd_, &p.frame, CAN_MTU);
+    if (s == Send::kFull) {
       blocked_ = true;
       return;
     }
-    if (r == static_cast<ssize_t>(CAN_MTU) && p.pdo) bank_.on_reply_sent(now);
+    if (s == Send::kSent && p.pdo) bank_.on_reply_sent(now);
     head_ = (head_ + 1) % queue_.size();
   }
 }

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "pedalwave/drivers/bus_budget.hpp"
+#include "pedalwave/drivers/can_io.hpp"
 #include "pedalwave/drivers/can_protocol.hpp"
 #include "pedalwave/drivers/wire.hpp"
 #include "pedalwave/drivers/posix_util.hpp"
@@ -473,13 +474,12 @@ void CanModuleEmulator::flush(std::int64_t now) noexcept {
   blocked_ = false;
   while (head_ != tail_ && queue_[head_].due_ns <= now) {
     const Pending& p = queue_[head_];
-    const ssize_t r = ::send(fd_, &p.frame, p.size, MSG_DONTWAIT | MSG_NOSIGNAL);
-    if (r < 0 && errno == EINTR) continue;
-    if (r < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS)) {
+    const Send s = send_frame(fd_, &p.frame, p.size);
+    if (s == Send::kFull) {
       blocked_ = true;
       return;
     }
-    if (r == static_cast<ssize_t>(p.size)) bank_.on_reply_sent(now);
+    if (s == Send::kSent) bank_.on_reply_sent(now);
     head_ = (head_ + 1) % queue_.size();
   }
 }

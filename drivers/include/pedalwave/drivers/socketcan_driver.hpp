@@ -126,6 +126,7 @@ class SocketCanDriver final : public Driver {
 
  private:
   enum class Tx : std::uint8_t { kOk, kDropped, kDown };
+  Tx transmit(const void* f, std::size_t size) noexcept;  // counts it as sent or dropped
   Tx send_classic(const can_frame& f) noexcept;
   Tx send_fd(const canfd_frame& f) noexcept;
   void note_tx(Tx t, bool& dropped, bool& down) noexcept;

@@ -1,6 +1,6 @@
-// One frame from a CAN socket (SocketCAN, or the socket pair the tests and the virtual robot use)
-// with the kernel's receive stamp: the receive loop of the own-protocol driver, the CANopen master
-// and the emulated CANopen drives. Allocation-free; the caller owns the control buffer.
+// One frame to or from a CAN socket (SocketCAN, or the socket pair the tests and the virtual robot
+// use), received with the kernel's receive stamp: the I/O of the own-protocol driver, the CANopen
+// master and the emulated modules and drives. Allocation-free; the caller owns the control buffer.
 #pragma once
 
 #include <linux/can.h>
@@ -73,6 +73,25 @@ inline Receive receive_frame(int fd, std::span<char> control, std::int64_t rt_mi
       }
     }
     return Receive::kFrame;
+  }
+}
+
+enum class Send : std::uint8_t { kSent, kFull, kDown };
+
+// One send(MSG_DONTWAIT) of a whole frame of `size` bytes (CAN_MTU or CANFD_MTU; EINTR retried).
+// kFull: the socket's transmit queue is full (EAGAIN, ENOBUFS), the frame was not sent; kDown:
+// any other error or a short write (ENETDOWN, ENXIO, EPIPE: the bus is gone). errno says why
+// (EIO for a short write).
+inline Send send_frame(int fd, const void* frame, std::size_t size) noexcept {
+  for (;;) {
+    const ssize_t r = ::send(fd, frame, size, MSG_DONTWAIT | MSG_NOSIGNAL);
+    if (r == static_cast<ssize_t>(size)) return Send::kSent;
+    if (r >= 0) {
+      errno = EIO;
+      return Send::kDown;
+    }
+    if (errno == EINTR) continue;
+    return errno == EAGAIN || errno == EWOULDBLOCK || errno == ENOBUFS ? Send::kFull : Send::kDown;
   }
 }
 

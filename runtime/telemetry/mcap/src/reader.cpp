@@ -12,28 +12,12 @@
 #include <memory>
 
 #include "pedalwave/mcap/crc32.hpp"
+#include "records.hpp"
 
 namespace pedalwave::mcap {
 namespace {
 
-enum Op : std::uint8_t {
-  kHeader = 0x01,
-  kFooter = 0x02,
-  kSchema = 0x03,
-  kChannel = 0x04,
-  kMessage = 0x05,
-  kChunk = 0x06,
-  kMessageIndex = 0x07,
-  kChunkIndex = 0x08,
-  kAttachment = 0x09,
-  kAttachmentIndex = 0x0A,
-  kStatistics = 0x0B,
-  kMetadata = 0x0C,
-  kMetadataIndex = 0x0D,
-  kSummaryOffset = 0x0E,
-  kDataEnd = 0x0F,
-};
-constexpr std::array<unsigned char, 8> kMagic = {0x89, 'M', 'C', 'A', 'P', '0', '\r', '\n'};
+using namespace detail;  // the opcodes and the magic (records.hpp)
 constexpr std::string_view kMagicText =
     "the MCAP magic 89 4d 43 41 50 30 0d 0a (\"\\x89MCAP0\\r\\n\")";
 

@@ -10,24 +10,12 @@
 #include <stdexcept>
 #include <tuple>
 
+#include "records.hpp"
+
 namespace pedalwave::mcap {
 namespace {
 
-// Record opcodes (spec "Records").
-enum Op : std::uint8_t {
-  kHeader = 0x01,
-  kFooter = 0x02,
-  kSchema = 0x03,
-  kChannel = 0x04,
-  kMessage = 0x05,
-  kChunk = 0x06,
-  kMessageIndex = 0x07,
-  kChunkIndex = 0x08,
-  kStatistics = 0x0B,
-  kSummaryOffset = 0x0E,
-  kDataEnd = 0x0F,
-};
-constexpr std::array<unsigned char, 8> kMagic = {0x89, 'M', 'C', 'A', 'P', '0', '\r', '\n'};
+using namespace detail;  // the opcodes and the magic (records.hpp)
 
 // Little-endian serialization into a byte buffer (spec "Serialization").
 void put_u8(std::vector<std::byte>& b, std::uint8_t v) { b.push_back(static_cast<std::byte>(v)); }

@@ -1,0 +1,76 @@
+// Several members of one scene's plant evaluated at once, one SIMD lane per member: what a sweep
+// whose members differ only in their commands (the k_c sweep) needs of the plant, each quantity a
+// vector across the members (README "Point 4", the lockstep route). The same terms as
+// Plant::implicit_terms without the Jacobian — F, the body block of M, D_q v, the contact
+// signature — equal to it to rounding (tests/model/lanes_test.cpp), for the scenes it supports
+// (LanePlant::unsupported: segment links, flexible joints, regularized ground friction, boxes,
+// healthy actuators without limits or joint friction).
+//
+// Lane layout: coordinate i of member l at x[i · width + l]. The width is the machine's: 8 with
+// AVX-512, 4 with AVX2 (the kernels are compiled for both and chosen at run time); 0 means the
+// machine has neither and the caller keeps the scalar Plant.
+//
+// Sized once at construction; evaluate() allocates nothing.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pedalwave/model/plant.hpp"
+
+namespace pedalwave::model {
+
+// What LanePlant::evaluate writes, each in lane layout.
+struct LaneTerms {
+  std::vector<double> F;          // F(q, v) = B u + Q − bias, nq × width
+  std::vector<double> Mb;         // the body block of M (nq1 × nq1, column-major) × width; the
+                                  // whole M is Model::M_spin() + [Mb 0; 0 0]
+  std::vector<double> dFdq_v;     // D_q v with ∂F/∂q's stiff terms (ImplicitTerms::dFdq_v), nq × width
+  std::vector<std::uint64_t> signature;  // ImplicitTerms::signature per member, width
+};
+
+// The module commands of each member (ActuatorInput; a member with its torque off has all five
+// zero), each (N−1) × width in lane layout.
+struct LaneInputs {
+  std::vector<double> tau, kp, beta_ref, kd, beta_dot_ref;
+};
+
+class LanePlant {
+ public:
+  // Why `scene` cannot be evaluated in lanes, or "" when it can.
+  static std::string unsupported(const Scene& scene);
+  // The lane width this machine runs: 8 (AVX-512 F and DQ), 4 (AVX2 and FMA) or 0 (neither).
+  static int machine_width();
+
+  // The constants of `plant` (its boxes already placed). Throws std::invalid_argument when the
+  // scene is unsupported or `width` is not one the machine runs (8 or 4, at most machine_width()).
+  explicit LanePlant(const Plant& plant, int width = machine_width());
+  ~LanePlant();
+  LanePlant(const LanePlant&) = delete;
+  LanePlant& operator=(const LanePlant&) = delete;
+
+  int width() const { return width_; }
+  int nq() const { return nq_; }
+  int nq1() const { return nq1_; }
+  int joints() const { return joints_; }
+
+  // Buffers of the right sizes (zero).
+  LaneTerms make_terms() const;
+  LaneInputs make_inputs() const;
+
+  // The terms at (q, v) (nq × width each, lane layout) with the members' commands; Mb only when
+  // with_mass.
+  void evaluate(const double* q, const double* v, const LaneInputs& in, bool with_mass, LaneTerms& out);
+
+  struct Constants;  // the plant's constants in the kernels' flat form (lanes.cpp)
+  struct Workspace;  // the kernels' per-evaluation arrays (lanes.cpp)
+
+ private:
+  int width_ = 0, nq_ = 0, nq1_ = 0, joints_ = 0;
+  std::unique_ptr<Constants> c_;
+  std::unique_ptr<Workspace> w_;
+};
+
+}  // namespace pedalwave::model

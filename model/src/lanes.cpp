@@ -1,0 +1,189 @@
+#include "pedalwave/model/lanes.hpp"
+
+#include <immintrin.h>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace pedalwave::model {
+
+namespace {
+constexpr int kMaxWidth = 8;
+constexpr int kMaxPatches = 8;
+constexpr int kMaxBoxes = 8;
+constexpr int kMaxPoints = 2 * kMaxLinks + 1;
+}  // namespace
+
+struct LanePlant::Constants {
+  int N = 0, P = 0;
+  double c[kMaxPoints][kMaxLinks] = {};  // point coefficients c_ki
+  double W[kMaxLinks][kMaxLinks] = {};
+  double s[kMaxLinks] = {};
+  double K[kMaxLinks] = {};
+  double I_l = 0, m_total = 0, g = 0;
+  bool ground_on = false;
+  double gz = 0, gk = 0, gd = 0, gmu = 0, v_s = 0;
+  int n_patches = 0;
+  double patch_x[kMaxPatches] = {}, patch_mu[kMaxPatches] = {};
+  struct BoxC {
+    double x0, x1, z0, z1, xc, zc, cap, mu, edge_mu;
+    bool corners;
+  };
+  int n_boxes = 0;
+  BoxC box[kMaxBoxes] = {};
+};
+
+struct LanePlant::Workspace {
+  alignas(64) double td[kMaxLinks * kMaxWidth];  // θ̇
+  alignas(64) double sn[kMaxLinks * kMaxWidth];
+  alignas(64) double cs[kMaxLinks * kMaxWidth];
+  alignas(64) double x[kMaxPoints * kMaxWidth];  // body points
+  alignas(64) double z[kMaxPoints * kMaxWidth];
+  alignas(64) double vx[kMaxPoints * kMaxWidth];
+  alignas(64) double vz[kMaxPoints * kMaxWidth];
+  alignas(64) double fx[kMaxPoints * kMaxWidth];  // contact force per point
+  alignas(64) double fz[kMaxPoints * kMaxWidth];
+  alignas(64) double gx[kMaxPoints * kMaxWidth];  // D_q v's force per point
+  alignas(64) double gz[kMaxPoints * kMaxWidth];
+  std::uint64_t sig[kMaxWidth];
+};
+
+namespace {
+
+#define PW_LANES_NS avx512
+#define PW_LANES_W 8
+#define PW_LANES_TARGET __attribute__((target("avx512f,avx512dq,avx2,fma")))
+#define PW_LANES_SIN _ZGVeN8v_sin
+#define PW_LANES_COS _ZGVeN8v_cos
+#define PW_LANES_NATIVE __m512d
+#include "lanes_kernel.inc"
+#undef PW_LANES_NS
+#undef PW_LANES_W
+#undef PW_LANES_TARGET
+#undef PW_LANES_SIN
+#undef PW_LANES_COS
+#undef PW_LANES_NATIVE
+
+#define PW_LANES_NS avx2
+#define PW_LANES_W 4
+#define PW_LANES_TARGET __attribute__((target("avx2,fma")))
+#define PW_LANES_SIN _ZGVdN4v_sin
+#define PW_LANES_COS _ZGVdN4v_cos
+#define PW_LANES_NATIVE __m256d
+#include "lanes_kernel.inc"
+#undef PW_LANES_NS
+#undef PW_LANES_W
+#undef PW_LANES_TARGET
+#undef PW_LANES_SIN
+#undef PW_LANES_COS
+#undef PW_LANES_NATIVE
+
+}  // namespace
+
+std::string LanePlant::unsupported(const Scene& s) {
+  const Params& p = s.robot;
+  if (p.link_shape != LinkShape::kSegment) return "link_shape is not segment";
+  if (p.joints != JointModel::kFlexible) return "the joints are not flexible";
+  if (p.N < 2 || p.N > kMaxLinks) return "N is outside 2 … " + std::to_string(kMaxLinks);
+  if (s.ground.law != FrictionLaw::kRegularized) return "the ground's friction law is not regularized";
+  if (s.ground.friction_at_com) return "friction_at_com is on";
+  if (s.ground.patches.size() > static_cast<size_t>(kMaxPatches))
+    return "more than " + std::to_string(kMaxPatches) + " surface patches";
+  if (s.boxes.size() > static_cast<size_t>(kMaxBoxes)) return "more than " + std::to_string(kMaxBoxes) + " boxes";
+  if (s.joint_friction_on) return "joint friction is on";
+  if (s.torque_limit_on) return "a torque limit is on";
+  if (!s.faults.empty()) return "the scene injects faults";
+  return "";
+}
+
+int LanePlant::machine_width() {
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq")) return 8;
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) return 4;
+  return 0;
+}
+
+LanePlant::LanePlant(const Plant& plant, int width)
+    : width_(width), c_(std::make_unique<Constants>()), w_(std::make_unique<Workspace>()) {
+  const Scene& sc = plant.scene();
+  if (const std::string why = unsupported(sc); !why.empty())
+    throw std::invalid_argument("LanePlant: scene '" + sc.name + "': " + why);
+  const int mw = machine_width();
+  if (!((width == 8 || width == 4) && width <= mw))
+    throw std::invalid_argument("LanePlant: width " + std::to_string(width) + " is not one this machine runs (its widest: " +
+                                std::to_string(mw) + "; 8 needs AVX-512 F and DQ, 4 AVX2 and FMA)");
+  const Model& m = plant.model();
+  Constants& c = *c_;
+  c.N = m.N();
+  c.P = m.points();
+  nq_ = m.nq();
+  nq1_ = m.nq1();
+  joints_ = m.joints();
+  for (int k = 0; k < c.P; ++k)
+    for (int i = 0; i < c.N; ++i) c.c[k][i] = m.point_coeff()(k, i);
+  for (int k = 0; k < c.N; ++k)
+    for (int l = 0; l < c.N; ++l) c.W[k][l] = m.W()(k, l);
+  for (int i = 0; i < c.N; ++i) c.s[i] = m.s()(i);
+  for (int j = 0; j < m.joints(); ++j) c.K[j] = m.K()(j);
+  c.I_l = m.params().I_l;
+  c.m_total = m.total_mass();
+  c.g = m.params().g;
+  const Ground& g = sc.ground;
+  c.ground_on = sc.ground_on;
+  c.gz = g.z;
+  c.gk = g.k;
+  c.gd = g.d;
+  c.gmu = g.mu;
+  c.v_s = g.v_s;
+  c.n_patches = static_cast<int>(g.patches.size());
+  for (int i = 0; i < c.n_patches; ++i) {
+    c.patch_x[i] = g.patches[static_cast<size_t>(i)].x_begin;
+    c.patch_mu[i] = g.patches[static_cast<size_t>(i)].mu;
+  }
+  c.n_boxes = static_cast<int>(sc.boxes.size());
+  for (int i = 0; i < c.n_boxes; ++i) {
+    const Box& b = sc.boxes[static_cast<size_t>(i)];
+    Constants::BoxC& o = c.box[i];
+    o.x0 = b.x_near;
+    o.x1 = b.x_near + b.width;
+    o.z0 = g.z;
+    o.z1 = g.z + b.height;
+    o.xc = 0.5 * (o.x0 + o.x1);
+    o.zc = 0.5 * (o.z0 + o.z1);
+    o.cap = 0.5 * std::min(b.width, b.height);
+    o.mu = b.mu;
+    o.edge_mu = std::isnan(b.edge_mu) ? b.mu : b.edge_mu;
+    o.corners = b.corner_contact;
+  }
+}
+
+LanePlant::~LanePlant() = default;
+
+LaneTerms LanePlant::make_terms() const {
+  LaneTerms t;
+  t.F.assign(static_cast<size_t>(nq_ * width_), 0.0);
+  t.Mb.assign(static_cast<size_t>(nq1_ * nq1_ * width_), 0.0);
+  t.dFdq_v.assign(static_cast<size_t>(nq_ * width_), 0.0);
+  t.signature.assign(static_cast<size_t>(width_), 0);
+  return t;
+}
+
+LaneInputs LanePlant::make_inputs() const {
+  LaneInputs in;
+  for (auto* x : {&in.tau, &in.kp, &in.beta_ref, &in.kd, &in.beta_dot_ref})
+    x->assign(static_cast<size_t>(joints_ * width_), 0.0);
+  return in;
+}
+
+void LanePlant::evaluate(const double* q, const double* v, const LaneInputs& in, bool with_mass, LaneTerms& out) {
+  const double* const inputs[5] = {in.tau.data(), in.kp.data(), in.beta_ref.data(), in.kd.data(),
+                                   in.beta_dot_ref.data()};
+  if (width_ == 8)
+    avx512::evaluate(*c_, *w_, q, v, inputs, with_mass, out.F.data(), out.Mb.data(), out.dFdq_v.data(),
+                     out.signature.data());
+  else
+    avx2::evaluate(*c_, *w_, q, v, inputs, with_mass, out.F.data(), out.Mb.data(), out.dFdq_v.data(),
+                   out.signature.data());
+}
+
+}  // namespace pedalwave::model

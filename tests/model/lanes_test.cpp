@@ -1,0 +1,172 @@
+// LanePlant (lanes.hpp): several members evaluated at once, one SIMD lane each, give each member
+// what Plant::implicit_terms gives it alone — F, M, D_q v to 1e-12 relative and the same contact
+// signature — over random states in contact with the ground (two friction patches) and a box (its
+// faces and its top corners against the links), with different commands per member, N = 3 and 6,
+// at every lane width this machine runs. The scenes it cannot run are named, not run.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "model_fixtures.hpp"
+#include "pedalwave/model/lanes.hpp"
+
+using namespace pedalwave::model;
+
+namespace {
+
+Scene stair_like(int N) {
+  Scene s;
+  s.name = "lanes";
+  s.robot = paper_params(N);
+  s.initial.theta = 0;
+  s.ground.patches = {SurfacePatch{.x_begin = 0.02, .mu = 0.4}};
+  s.boxes = {Box{.x_near = -0.05, .width = 0.11, .height = 0.06}};
+  return s;
+}
+
+double rel_diff(const VectorXd& a, const VectorXd& b) {
+  return (a - b).lpNorm<Eigen::Infinity>() / (1.0 + b.lpNorm<Eigen::Infinity>());
+}
+
+std::vector<int> widths() {
+  std::vector<int> w;
+  for (int x : {8, 4})
+    if (x <= LanePlant::machine_width()) w.push_back(x);
+  return w;
+}
+
+}  // namespace
+
+TEST(LanePlant, EachMemberAsThePlantEvaluatesIt) {
+  if (widths().empty())
+    GTEST_SKIP() << "SKIPPED LOUDLY: this machine has neither AVX-512 nor AVX2+FMA; LanePlant cannot run here";
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double a = 0.5e-3;  // θh of the sweep's step
+  for (int width : widths()) {
+    for (int N : {3, 6}) {
+      SCOPED_TRACE("width " + std::to_string(width) + ", N = " + std::to_string(N));
+      Plant plant(stair_like(N));
+      Scene no_corners_scene = stair_like(N);
+      no_corners_scene.boxes[0].corner_contact = false;
+      Plant no_corners(no_corners_scene);  // to count the states where the box's corners act
+      LanePlant lanes(plant, width);
+      const Model& m = plant.model();
+      const int n = m.nq(), n1 = m.nq1(), J = m.joints();
+      ASSERT_EQ(lanes.nq(), n);
+      ImplicitTerms ref;
+      ref.M = MatrixXd::Zero(n, n);
+      ref.F = VectorXd::Zero(n);
+      ref.dFdq = MatrixXd::Zero(n, n);
+      ref.dFdv = MatrixXd::Zero(n, n);
+      ref.dFdq_v = VectorXd::Zero(n);
+      ref.dq_in_dv = a;
+      ref.with_jacobian = false;
+      ref.check_mass = false;
+      LaneTerms out = lanes.make_terms();
+      LaneInputs in = lanes.make_inputs();
+      std::vector<double> q(static_cast<size_t>(n * width)), v(q.size());
+      int contacts = 0, band = 0, corners = 0;
+      for (int round = 0; round < 40; ++round) {
+        std::vector<VectorXd> qs, vs;
+        for (int l = 0; l < width; ++l) {
+          VectorXd ql = pedalwave::model::testing::random_q(m, rng);
+          ql(m.i_theta_N()) = 0.3 * u(rng);
+          ql(m.i_px()) = 0.1 * u(rng);
+          ql(m.i_pz()) = 0.02 * u(rng) + (l % 3 == 0 ? 0.05 : 0.0);  // some up at the box's top
+          if (l == 1 && round % 2 == 1) {  // nearly flat, 2 mm under the box's top: across its edges
+            for (int j = 0; j < J; ++j) ql(m.i_alpha(j)) = ql(m.i_beta(j)) = 0.01 * u(rng);
+            ql(m.i_theta_N()) = 0.02 * u(rng);
+            ql(m.i_px()) = 0.05 * u(rng);
+            ql(m.i_pz()) = 0.058;
+          }
+          const VectorXd vl = pedalwave::model::testing::random_v(m, rng, (round + l) % 3 == 0 ? 1e-3 : 0.3);
+          for (int i = 0; i < n; ++i) {
+            q[static_cast<size_t>(i * width + l)] = ql(i);
+            v[static_cast<size_t>(i * width + l)] = vl(i);
+          }
+          for (int j = 0; j < J; ++j) {
+            const size_t x = static_cast<size_t>(j * width + l);
+            in.tau[x] = 0.1 * u(rng);
+            in.kp[x] = l == width - 1 ? 0.0 : 30.0 + u(rng);  // the last member's torque off
+            in.beta_ref[x] = 0.5 * u(rng);
+            in.kd[x] = l == width - 1 ? 0.0 : 15.0;
+            in.beta_dot_ref[x] = u(rng);
+            if (l == width - 1) in.tau[x] = in.beta_ref[x] = in.beta_dot_ref[x] = 0.0;
+          }
+          qs.push_back(ql);
+          vs.push_back(vl);
+        }
+        const bool with_mass = round % 2 == 0;
+        lanes.evaluate(q.data(), v.data(), in, with_mass, out);
+        for (int l = 0; l < width; ++l) {
+          for (int j = 0; j < J; ++j) {
+            const size_t x = static_cast<size_t>(j * width + l);
+            plant.input().tau(j) = in.tau[x];
+            plant.input().kp(j) = in.kp[x];
+            plant.input().beta_ref(j) = in.beta_ref[x];
+            plant.input().kd(j) = in.kd[x];
+            plant.input().beta_dot_ref(j) = in.beta_dot_ref[x];
+          }
+          ASSERT_TRUE(plant.implicit_terms(0.0, qs[static_cast<size_t>(l)], vs[static_cast<size_t>(l)], ref));
+          VectorXd F(n), dqv(n);
+          for (int i = 0; i < n; ++i) {
+            F(i) = out.F[static_cast<size_t>(i * width + l)];
+            dqv(i) = out.dFdq_v[static_cast<size_t>(i * width + l)];
+          }
+          EXPECT_LE(rel_diff(F, ref.F), 1e-12) << "round " << round << ", member " << l << "\nF lanes " << F.transpose()
+                                               << "\nF plant " << ref.F.transpose();
+          EXPECT_LE(rel_diff(dqv, ref.dFdq_v), 1e-12) << "round " << round << ", member " << l;
+          EXPECT_EQ(out.signature[static_cast<size_t>(l)], ref.signature) << "round " << round << ", member " << l;
+          if (with_mass) {
+            MatrixXd M = m.M_spin();
+            for (int c = 0; c < n1; ++c)
+              for (int r = 0; r < n1; ++r) M(r, c) += out.Mb[static_cast<size_t>((c * n1 + r) * width + l)];
+            EXPECT_LE((M - ref.M).lpNorm<Eigen::Infinity>(), 1e-12 * (1.0 + ref.M.lpNorm<Eigen::Infinity>()))
+                << "round " << round << ", member " << l;
+          }
+          ContactReport rep;
+          plant.report(qs[static_cast<size_t>(l)], vs[static_cast<size_t>(l)], rep);
+          contacts += rep.active;
+          for (int k = 0; k < m.points(); ++k) band += rep.f_normal(k) > 0 && std::abs(rep.f_tangent(k)) < 0.8 * 0.82 * rep.f_normal(k) * 0.999;
+          no_corners.input() = plant.input();
+          ImplicitTerms other = ref;
+          ASSERT_TRUE(no_corners.implicit_terms(0.0, qs[static_cast<size_t>(l)], vs[static_cast<size_t>(l)], other));
+          corners += other.F != ref.F;
+        }
+      }
+      EXPECT_GT(contacts, 40 * width) << "too few contacts to test anything";
+      EXPECT_GT(band, 10) << "too few contacts in the stick band";
+      EXPECT_GT(corners, 10) << "too few states with the box's corners acting";
+    }
+  }
+}
+
+TEST(LanePlant, NamesTheScenesItCannotRun) {
+  Scene s = stair_like(6);
+  EXPECT_EQ(LanePlant::unsupported(s), "");
+  s.robot.link_shape = LinkShape::kCapsule;
+  s.robot.link_radius = 0.01;
+  EXPECT_EQ(LanePlant::unsupported(s), "link_shape is not segment");
+  s = stair_like(6);
+  s.ground.law = FrictionLaw::kTanh;
+  EXPECT_EQ(LanePlant::unsupported(s), "the ground's friction law is not regularized");
+  s = stair_like(6);
+  s.torque_limit_on = true;
+  EXPECT_EQ(LanePlant::unsupported(s), "a torque limit is on");
+  s = stair_like(6);
+  s.robot.joints = JointModel::kRigid;
+  EXPECT_EQ(LanePlant::unsupported(s), "the joints are not flexible");
+  Plant rigid(s);
+  try {
+    LanePlant lanes(rigid, 4);
+    ADD_FAILURE() << "a rigid scene was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("scene 'lanes': the joints are not flexible"), std::string::npos) << e.what();
+  }
+  if (LanePlant::machine_width() > 0) {
+    Plant ok(stair_like(6));
+    EXPECT_THROW(LanePlant(ok, 2), std::invalid_argument);
+    EXPECT_THROW(LanePlant(ok, 16), std::invalid_argument);
+  }
+}

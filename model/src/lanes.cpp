@@ -164,6 +164,7 @@ LaneTerms LanePlant::make_terms() const {
   t.F.assign(static_cast<size_t>(nq_ * width_), 0.0);
   t.Mb.assign(static_cast<size_t>(nq1_ * nq1_ * width_), 0.0);
   t.dFdq_v.assign(static_cast<size_t>(nq_ * width_), 0.0);
+  t.D.assign(static_cast<size_t>(nq_ * nq_ * width_), 0.0);
   t.signature.assign(static_cast<size_t>(width_), 0);
   return t;
 }
@@ -175,15 +176,19 @@ LaneInputs LanePlant::make_inputs() const {
   return in;
 }
 
-void LanePlant::evaluate(const double* q, const double* v, const LaneInputs& in, bool with_mass, LaneTerms& out) {
+void LanePlant::evaluate(const double* q, const double* v, const LaneInputs& in, bool with_mass, LaneTerms& out,
+                         double jacobian, const double* v_start) {
   const double* const inputs[5] = {in.tau.data(), in.kp.data(), in.beta_ref.data(), in.kd.data(),
                                    in.beta_dot_ref.data()};
-  if (width_ == 8)
-    avx512::evaluate(*c_, *w_, q, v, inputs, with_mass, out.F.data(), out.Mb.data(), out.dFdq_v.data(),
+  if (width_ == 8) {
+    const avx512::Jac jac{jacobian, out.D.data(), nq_, v_start};
+    avx512::evaluate(*c_, *w_, q, v, inputs, with_mass, jac, out.F.data(), out.Mb.data(), out.dFdq_v.data(),
                      out.signature.data());
-  else
-    avx2::evaluate(*c_, *w_, q, v, inputs, with_mass, out.F.data(), out.Mb.data(), out.dFdq_v.data(),
+  } else {
+    const avx2::Jac jac{jacobian, out.D.data(), nq_, v_start};
+    avx2::evaluate(*c_, *w_, q, v, inputs, with_mass, jac, out.F.data(), out.Mb.data(), out.dFdq_v.data(),
                    out.signature.data());
+  }
 }
 
 }  // namespace pedalwave::model

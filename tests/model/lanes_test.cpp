@@ -1,6 +1,6 @@
 // LanePlant (lanes.hpp): several members evaluated at once, one SIMD lane each, give each member
-// what Plant::implicit_terms gives it alone — F, M, D_q v to 1e-12 relative and the same contact
-// signature — over random states in contact with the ground (two friction patches) and a box (its
+// what Plant::implicit_terms gives it alone — F, M, D_q v, the Jacobian ∂F/∂v + a ∂F/∂q (also for a
+// Newton iterate, with its step's start) to 1e-12 relative and the same contact signature — over random states in contact with the ground (two friction patches) and a box (its
 // faces and its top corners against the links), with different commands per member, N = 3 and 6,
 // at every lane width this machine runs. The scenes it cannot run are named, not run.
 #include <gtest/gtest.h>
@@ -98,7 +98,21 @@ TEST(LanePlant, EachMemberAsThePlantEvaluatesIt) {
           vs.push_back(vl);
         }
         const bool with_mass = round % 2 == 0;
-        lanes.evaluate(q.data(), v.data(), in, with_mass, out);
+        // The Jacobian ∂F/∂v + a ∂F/∂q in every other round, half of them for a Newton iterate
+        // whose step started at v0 (ImplicitTerms::v_start): v0 with some points' velocities
+        // reversed or in the stick band.
+        const bool with_jacobian = round % 4 >= 2;
+        std::vector<double> v0(v.size());
+        std::vector<VectorXd> v0s;
+        for (int l = 0; l < width; ++l) {
+          VectorXd x(n);
+          for (int i = 0; i < n; ++i) x(i) = v[static_cast<size_t>(i * width + l)] * (i % 2 == 0 ? -1.0 : 1e-3);
+          for (int i = 0; i < n; ++i) v0[static_cast<size_t>(i * width + l)] = x(i);
+          v0s.push_back(x);
+        }
+        const bool from_start = round % 4 == 3;
+        lanes.evaluate(q.data(), v.data(), in, with_mass, out, with_jacobian ? a : 0.0, from_start ? v0.data() : nullptr);
+        ref.with_jacobian = with_jacobian;
         for (int l = 0; l < width; ++l) {
           for (int j = 0; j < J; ++j) {
             const size_t x = static_cast<size_t>(j * width + l);
@@ -108,7 +122,16 @@ TEST(LanePlant, EachMemberAsThePlantEvaluatesIt) {
             plant.input().kd(j) = in.kd[x];
             plant.input().beta_dot_ref(j) = in.beta_dot_ref[x];
           }
+          ref.v_start = from_start ? &v0s[static_cast<size_t>(l)] : nullptr;
           ASSERT_TRUE(plant.implicit_terms(0.0, qs[static_cast<size_t>(l)], vs[static_cast<size_t>(l)], ref));
+          ref.v_start = nullptr;
+          if (with_jacobian) {
+            MatrixXd D(n, n);
+            for (int c = 0; c < n; ++c)
+              for (int r = 0; r < n; ++r) D(r, c) = out.D[static_cast<size_t>((c * n + r) * width + l)];
+            EXPECT_LE((D - ref.dFdv).lpNorm<Eigen::Infinity>(), 1e-12 * (1.0 + ref.dFdv.lpNorm<Eigen::Infinity>()))
+                << "round " << round << ", member " << l << "\nD lanes\n" << D << "\nD plant\n" << ref.dFdv;
+          }
           VectorXd F(n), dqv(n);
           for (int i = 0; i < n; ++i) {
             F(i) = out.F[static_cast<size_t>(i * width + l)];
@@ -131,6 +154,7 @@ TEST(LanePlant, EachMemberAsThePlantEvaluatesIt) {
           for (int k = 0; k < m.points(); ++k) band += rep.f_normal(k) > 0 && std::abs(rep.f_tangent(k)) < 0.8 * 0.82 * rep.f_normal(k) * 0.999;
           no_corners.input() = plant.input();
           ImplicitTerms other = ref;
+          other.with_jacobian = false;
           ASSERT_TRUE(no_corners.implicit_terms(0.0, qs[static_cast<size_t>(l)], vs[static_cast<size_t>(l)], other));
           corners += other.F != ref.F;
         }

@@ -28,6 +28,8 @@ struct LaneTerms {
   std::vector<double> Mb;         // the body block of M (nq1 × nq1, column-major) × width; the
                                   // whole M is Model::M_spin() + [Mb 0; 0 0]
   std::vector<double> dFdq_v;     // D_q v with ∂F/∂q's stiff terms (ImplicitTerms::dFdq_v), nq × width
+  std::vector<double> D;          // with a Jacobian asked for: ∂F/∂v + a ∂F/∂q (ImplicitTerms::dFdv
+                                  // with dq_in_dv = a), nq × nq (column-major) × width
   std::vector<std::uint64_t> signature;  // ImplicitTerms::signature per member, width
 };
 
@@ -61,8 +63,10 @@ class LanePlant {
   LaneInputs make_inputs() const;
 
   // The terms at (q, v) (nq × width each, lane layout) with the members' commands; Mb only when
-  // with_mass.
-  void evaluate(const double* q, const double* v, const LaneInputs& in, bool with_mass, LaneTerms& out);
+  // with_mass; D only when jacobian = a > 0, then with v_start (nq × width, or null) the step's
+  // start of a Newton iterate (ImplicitTerms::v_start).
+  void evaluate(const double* q, const double* v, const LaneInputs& in, bool with_mass, LaneTerms& out,
+                double jacobian = 0.0, const double* v_start = nullptr);
 
   struct Constants;  // the plant's constants in the kernels' flat form (lanes.cpp)
   struct Workspace;  // the kernels' per-evaluation arrays (lanes.cpp)

@@ -78,3 +78,48 @@ class LanePlant {
 };
 
 }  // namespace pedalwave::model
+
+namespace pedalwave::model {
+
+// implicit_contact (Integrator::step_implicit_contact: the θ-trapezoid with Newton corrections and
+// a kept, factored Jacobian) for every member of a LanePlant at once: the evaluations in lanes,
+// each member's Jacobian kept, refreshed and factored as its own Integrator would (its own age,
+// contact signature and Newton iteration count), so that a member's step is the scalar one to
+// rounding and its IntegratorStats are the scalar ones (tests/model/lanes_test.cpp).
+// Sized once at construction; step() allocates nothing.
+class LaneStepper {
+ public:
+  // o.method must be implicit_contact (throws std::invalid_argument otherwise).
+  LaneStepper(LanePlant& plant, const Plant& scalar, const IntegratorOptions& o);
+
+  // One step of h from t of every member whose status is kOk (a member that failed stays frozen
+  // with its status), q and v in lane layout (nq × width), with the members' commands.
+  void step(double t, double h, double* q, double* v, const LaneInputs& in, StepStatus* status);
+
+  const IntegratorStats& stats(int member) const { return stats_[static_cast<size_t>(member)]; }
+
+ private:
+  struct Member {
+    StructuredLU lu;
+    bool valid = false;
+    std::uint64_t sig = 0;
+    double h = 0.0;
+    int age = 0;
+    explicit Member(int n) : lu(n) {}
+  };
+  bool factor(int l, double a, double h, std::uint64_t sig, const std::vector<double>& D);
+  void solve(int l, double* x);  // x (lane layout) ← A⁻¹ x for member l
+
+  LanePlant& plant_;
+  IntegratorOptions o_;
+  int W_, nq_, n1_, J_;
+  MatrixXd M_spin_;
+  std::vector<Member> m_;
+  std::vector<IntegratorStats> stats_;
+  LaneTerms t0_, t1_;  // at the step's start, at the Newton iterate
+  std::vector<double> v1_, q1_, r_, tmp_;  // lane layout, nq × width
+  VectorXd x_;                             // one member's vector
+  std::vector<char> newton_, fresh_;       // per member: still iterating; needs a Jacobian
+};
+
+}  // namespace pedalwave::model

@@ -7,44 +7,37 @@ namespace pedalwave::model {
 
 LaneStepper::LaneStepper(LanePlant& plant, const Plant& scalar, const IntegratorOptions& o)
     : plant_(plant), o_(o), W_(plant.width()), nq_(plant.nq()), n1_(plant.nq1()), J_(plant.joints()),
-      M_spin_(scalar.model().M_spin()), t0_(plant.make_terms()), t1_(plant.make_terms()) {
+      lu_(plant.nq(), plant.joints(), plant.width()), t0_(plant.make_terms()), t1_(plant.make_terms()) {
   validate(o_);
   if (o_.method != Method::kImplicitContact)
     throw std::invalid_argument(std::string("LaneStepper: method ") + std::string(to_string(o_.method)) +
                                 ": expected implicit_contact");
   if (scalar.nq() != nq_) throw std::invalid_argument("LaneStepper: the plant and the lanes differ in nq");
-  for (int l = 0; l < W_; ++l) m_.emplace_back(nq_);
+  m_.assign(static_cast<size_t>(W_), Member{});
   stats_.assign(static_cast<size_t>(W_), IntegratorStats{});
   for (auto* x : {&v1_, &q1_, &r_, &tmp_}) x->assign(static_cast<size_t>(nq_ * W_), 0.0);
-  x_ = VectorXd::Zero(nq_);
-  newton_.assign(static_cast<size_t>(W_), 0);
-  fresh_.assign(static_cast<size_t>(W_), 0);
+  for (auto* x : {&newton_, &need_, &ok_, &converged_}) x->assign(static_cast<size_t>(W_), 0);
 }
 
-// Member l's M₀ − a D (M₀ from the step's start, D from `D`), factored and kept with its signature.
-bool LaneStepper::factor(int l, double a, double h, std::uint64_t sig, const std::vector<double>& D) {
-  Member& mb = m_[static_cast<size_t>(l)];
-  ++stats_[static_cast<size_t>(l)].jacobians;
-  MatrixXd& A = mb.lu.matrix();
-  for (int c = 0; c < nq_; ++c)
-    for (int r = 0; r < nq_; ++r) {
-      double x = M_spin_(r, c);
-      if (r < n1_ && c < n1_) x += t0_.Mb[static_cast<size_t>((c * n1_ + r) * W_ + l)];
-      A(r, c) = x - a * D[static_cast<size_t>((c * nq_ + r) * W_ + l)];
-    }
-  mb.valid = mb.lu.factor(J_);
-  mb.sig = sig;
-  mb.h = h;
-  mb.age = 0;
-  return mb.valid;
+void LaneStepper::factor(const LaneTerms& at, double a, double h, StepStatus* status) {
+  bool any = false;
+  for (int l = 0; l < W_; ++l) any |= need_[static_cast<size_t>(l)] != 0;
+  if (!any) return;
+  plant_.factor(t0_.Mb, at.D, a, need_.data(), lu_, ok_.data());
+  for (int l = 0; l < W_; ++l) {
+    const auto i = static_cast<size_t>(l);
+    if (!need_[i]) continue;
+    ++stats_[i].jacobians;
+    Member& mb = m_[i];
+    mb.valid = ok_[i] != 0;
+    mb.sig = at.signature[i];
+    mb.h = h;
+    mb.age = 0;
+    if (!mb.valid) status[l] = StepStatus::kNonFinite;
+  }
 }
 
-void LaneStepper::solve(int l, double* x) {
-  for (int i = 0; i < nq_; ++i) x_(i) = x[i * W_ + l];
-  m_[static_cast<size_t>(l)].lu.solve(x_);
-  for (int i = 0; i < nq_; ++i) x[i * W_ + l] = x_(i);
-}
-
+// Integrator::step_implicit_contact, member by member in its decisions, in lanes in its arithmetic.
 void LaneStepper::step(double t, double h, double* q, double* v, const LaneInputs& in, StepStatus* status) {
   (void)t;  // the plant is autonomous; t only labels the step
   const double th = o_.theta, a = th * h, b = (1 - th) * h;
@@ -59,104 +52,95 @@ void LaneStepper::step(double t, double h, double* q, double* v, const LaneInput
     any_stale |= !mb.valid;
   }
   // The start: F₀, M₀, D_q v₀; the Jacobian for the members whose kept one expired or whose
-  // contact branches changed (each counts the evaluations its own Integrator would).
+  // contact branches changed (each counts the evaluations its own Integrator would: a second one,
+  // with the Jacobian, when only the branches changed).
   plant_.evaluate(q, v, in, true, t0_, any_stale ? a : 0.0);
-  bool any_changed = false;
+  bool again = false;
   for (int l = 0; l < W; ++l) {
+    const auto i = static_cast<size_t>(l);
+    need_[i] = 0;
     if (status[l] != StepStatus::kOk) continue;
-    const Member& mb = m_[static_cast<size_t>(l)];
-    ++stats_[static_cast<size_t>(l)].evaluations;
-    fresh_[static_cast<size_t>(l)] = !mb.valid || t0_.signature[static_cast<size_t>(l)] != mb.sig;
-    if (mb.valid && fresh_[static_cast<size_t>(l)]) {
-      ++stats_[static_cast<size_t>(l)].evaluations;  // its Integrator evaluates again, with the Jacobian
-      any_changed |= !any_stale;
+    const Member& mb = m_[i];
+    ++stats_[i].evaluations;
+    need_[i] = !mb.valid || t0_.signature[i] != mb.sig;
+    if (mb.valid && need_[i]) {
+      ++stats_[i].evaluations;
+      again |= !any_stale;
     }
   }
-  if (any_changed) plant_.evaluate(q, v, in, true, t0_, a);
-  for (int l = 0; l < W; ++l) {
-    if (status[l] != StepStatus::kOk || !fresh_[static_cast<size_t>(l)]) continue;
-    if (!factor(l, a, h, t0_.signature[static_cast<size_t>(l)], t0_.D)) status[l] = StepStatus::kNonFinite;
-  }
+  if (again) plant_.evaluate(q, v, in, true, t0_, a);
+  factor(t0_, a, h, status);
   // Predictor: (M − θh D_v − θ²h² D_q) Δv = h (F + θh D_q v).
   for (size_t i = 0; i < r_.size(); ++i) r_[i] = h * (t0_.F[i] + a * t0_.dFdq_v[i]);
+  plant_.solve(lu_, r_.data());
   bool iterating = false;
   for (int l = 0; l < W; ++l) {
-    newton_[static_cast<size_t>(l)] = 0;
+    const auto i = static_cast<size_t>(l);
+    newton_[i] = 0;
+    converged_[i] = o_.newton_iterations == 0;
     if (status[l] != StepStatus::kOk) continue;
-    solve(l, r_.data());
-    for (int i = 0; i < n; ++i) v1_[at(i, l)] = v[at(i, l)] + r_[at(i, l)];
-    newton_[static_cast<size_t>(l)] = o_.newton_iterations > 0;
-    iterating |= o_.newton_iterations > 0;
+    for (int c = 0; c < n; ++c) v1_[at(c, l)] = v[at(c, l)] + r_[at(c, l)];
+    newton_[i] = o_.newton_iterations > 0;
+    iterating |= newton_[i] != 0;
   }
-  std::vector<char>& converged = fresh_;  // reused: fresh_ is done with
-  for (int l = 0; l < W; ++l) converged[static_cast<size_t>(l)] = o_.newton_iterations == 0;
   const double tol = o_.newton_tol;
   for (int it = 0; it < o_.newton_iterations && iterating; ++it) {
     for (size_t i = 0; i < q1_.size(); ++i) q1_[i] = q[i] + b * v[i] + a * v1_[i];
     plant_.evaluate(q1_.data(), v1_.data(), in, false, t1_, always ? a : 0.0, always ? v : nullptr);
-    bool any_jac = false;
+    bool with_jacobian = false;
     for (int l = 0; l < W; ++l) {
-      if (!newton_[static_cast<size_t>(l)]) continue;
-      ++stats_[static_cast<size_t>(l)].evaluations;
-      if (!always && t1_.signature[static_cast<size_t>(l)] != m_[static_cast<size_t>(l)].sig) {
-        ++stats_[static_cast<size_t>(l)].evaluations;
-        any_jac = true;
+      const auto i = static_cast<size_t>(l);
+      need_[i] = 0;
+      if (!newton_[i]) continue;
+      ++stats_[i].evaluations;
+      need_[i] = always || t1_.signature[i] != m_[i].sig;
+      if (!always && need_[i]) {
+        ++stats_[i].evaluations;
+        with_jacobian = true;
       }
     }
-    if (any_jac) plant_.evaluate(q1_.data(), v1_.data(), in, false, t1_, a, v);
-    // Residual G(v₁) = M₀ (v₁ − v₀) − h [(1−θ) F₀ + θ F₁].
+    if (with_jacobian) plant_.evaluate(q1_.data(), v1_.data(), in, false, t1_, a, v);
+    // Residual G(v₁) = M₀ (v₁ − v₀) − h [(1−θ) F₀ + θ F₁]; the members' fresh Jacobians where
+    // their Integrators would make them; every solve at once.
     for (size_t i = 0; i < tmp_.size(); ++i) tmp_[i] = v1_[i] - v[i];
-    for (int l = 0; l < W; ++l) {
-      if (!newton_[static_cast<size_t>(l)]) continue;
-      for (int r = 0; r < n; ++r) {
-        double s = 0.0;
-        for (int c = 0; c < n; ++c) {
-          double mrc = M_spin_(r, c);
-          if (r < n1_ && c < n1_) mrc += t0_.Mb[static_cast<size_t>((c * n1_ + r) * W + l)];
-          s += mrc * tmp_[at(c, l)];
-        }
-        r_[at(r, l)] = s - (b * t0_.F[at(r, l)] + a * t1_.F[at(r, l)]);
-      }
-    }
+    plant_.residual(t0_.Mb, tmp_.data(), t0_.F.data(), t1_.F.data(), b, a, r_.data());
+    factor(t1_, a, h, status);
+    plant_.solve(lu_, r_.data());
     iterating = false;
     for (int l = 0; l < W; ++l) {
-      if (!newton_[static_cast<size_t>(l)]) continue;
-      const bool jac = always || t1_.signature[static_cast<size_t>(l)] != m_[static_cast<size_t>(l)].sig;
-      if (jac && !factor(l, a, h, t1_.signature[static_cast<size_t>(l)], t1_.D)) {
-        status[l] = StepStatus::kNonFinite;
-        newton_[static_cast<size_t>(l)] = 0;
+      const auto i = static_cast<size_t>(l);
+      if (!newton_[i]) continue;
+      if (status[l] != StepStatus::kOk) {  // its Jacobian did not factor
+        newton_[i] = 0;
         continue;
       }
-      solve(l, r_.data());
       double dmax = 0.0, vmax = 0.0;
       bool finite = true;
-      for (int i = 0; i < n; ++i) {
-        const double d = r_[at(i, l)];
-        const double x = v1_[at(i, l)] - d;
-        v1_[at(i, l)] = x;
+      for (int c = 0; c < n; ++c) {
+        const double d = r_[at(c, l)];
+        const double x = v1_[at(c, l)] - d;
+        v1_[at(c, l)] = x;
         finite = finite && std::isfinite(x);
         dmax = std::max(dmax, std::abs(d));
         vmax = std::max(vmax, std::abs(x));
       }
-      if (!finite) {
-        newton_[static_cast<size_t>(l)] = 0;
-        continue;
-      }
+      newton_[i] = 0;
+      if (!finite) continue;
       if (dmax <= tol * (1.0 + vmax)) {
-        converged[static_cast<size_t>(l)] = 1;
-        newton_[static_cast<size_t>(l)] = 0;
+        converged_[i] = 1;
         continue;
       }
+      newton_[i] = 1;
       iterating = true;
     }
   }
   for (int l = 0; l < W; ++l) {
     if (status[l] != StepStatus::kOk) continue;
     IntegratorStats& st = stats_[static_cast<size_t>(l)];
-    if (!converged[static_cast<size_t>(l)]) ++st.newton_unconverged;
+    if (!converged_[static_cast<size_t>(l)]) ++st.newton_unconverged;
     bool finite = true;
-    for (int i = 0; i < n; ++i) {
-      const size_t k = at(i, l);
+    for (int c = 0; c < n; ++c) {
+      const size_t k = at(c, l);
       q[k] += b * v[k] + a * v1_[k];
       v[k] = v1_[k];
       finite = finite && std::isfinite(q[k]) && std::isfinite(v[k]);

@@ -31,6 +31,11 @@ struct LanePlant::Constants {
   };
   int n_boxes = 0;
   BoxC box[kMaxBoxes] = {};
+  // M_spin's nonzero entries (row, column, value), for the Newton residual.
+  int n_spin = 0;
+  int spin_r[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1)] = {}, spin_c[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1)] = {};
+  double spin_v[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1)] = {};
+  int nq = 0, nq1 = 0;
 };
 
 struct LanePlant::Workspace {
@@ -46,6 +51,8 @@ struct LanePlant::Workspace {
   alignas(64) double gx[kMaxPoints * kMaxWidth];  // D_q v's force per point
   alignas(64) double gz[kMaxPoints * kMaxWidth];
   std::uint64_t sig[kMaxWidth];
+  alignas(64) double y[(2 * kMaxLinks + 1) * kMaxWidth];  // a solve's permuted right-hand side
+  alignas(64) double A[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1) * kMaxWidth];  // a factorization's matrix
 };
 
 namespace {
@@ -140,6 +147,16 @@ LanePlant::LanePlant(const Plant& plant, int width)
     c.patch_x[i] = g.patches[static_cast<size_t>(i)].x_begin;
     c.patch_mu[i] = g.patches[static_cast<size_t>(i)].mu;
   }
+  c.nq = m.nq();
+  c.nq1 = m.nq1();
+  for (int col = 0; col < m.nq(); ++col)
+    for (int r = 0; r < m.nq(); ++r)
+      if (m.M_spin()(r, col) != 0.0) {
+        c.spin_r[c.n_spin] = r;
+        c.spin_c[c.n_spin] = col;
+        c.spin_v[c.n_spin] = m.M_spin()(r, col);
+        ++c.n_spin;
+      }
   c.n_boxes = static_cast<int>(sc.boxes.size());
   for (int i = 0; i < c.n_boxes; ++i) {
     const Box& b = sc.boxes[static_cast<size_t>(i)];
@@ -189,6 +206,37 @@ void LanePlant::evaluate(const double* q, const double* v, const LaneInputs& in,
     avx2::evaluate(*c_, *w_, q, v, inputs, with_mass, jac, out.F.data(), out.Mb.data(), out.dFdq_v.data(),
                    out.signature.data());
   }
+}
+
+void LanePlant::solve(const LaneLU& lu, double* x) const {
+  if (width_ == 8)
+    avx512::solve(lu, *w_, x);
+  else
+    avx2::solve(lu, *w_, x);
+}
+
+void LanePlant::residual(const std::vector<double>& Mb, const double* x, const double* F0, const double* F1,
+                         double b, double a, double* r) const {
+  if (width_ == 8)
+    avx512::residual(*c_, Mb.data(), x, F0, F1, b, a, r);
+  else
+    avx2::residual(*c_, Mb.data(), x, F0, F1, b, a, r);
+}
+
+LaneLU::LaneLU(int n_, int nd_, int width_)
+    : n(n_), nd(nd_), width(width_), A(static_cast<size_t>(n_ * n_ * width_), 0.0),
+      d_inv(static_cast<size_t>(nd_ * width_), 0.0), u_inv(static_cast<size_t>((n_ - nd_) * width_), 0.0),
+      perm(static_cast<size_t>((n_ - nd_) * width_), 0) {
+  for (int k = 0; k < n - nd; ++k)
+    for (int l = 0; l < width; ++l) perm[static_cast<size_t>(k * width + l)] = k;
+}
+
+void LanePlant::factor(const std::vector<double>& Mb, const std::vector<double>& D, double a, const char* need,
+                       LaneLU& out, char* ok) {
+  if (width_ == 8)
+    avx512::factor(*c_, *w_, Mb.data(), D.data(), a, need, out, ok);
+  else
+    avx2::factor(*c_, *w_, Mb.data(), D.data(), a, need, out, ok);
 }
 
 }  // namespace pedalwave::model

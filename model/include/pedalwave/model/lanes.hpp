@@ -39,6 +39,16 @@ struct LaneInputs {
   std::vector<double> tau, kp, beta_ref, kd, beta_dot_ref;
 };
 
+// Members' StructuredLU factors in lane layout (LanePlant::factor, LanePlant::solve).
+struct LaneLU {
+  int n = 0, nd = 0, width = 0;
+  std::vector<double> A;       // StructuredLU::factors(), n × n (column-major) × width
+  std::vector<double> d_inv;   // nd × width
+  std::vector<double> u_inv;   // (n − nd) × width
+  std::vector<int> perm;       // the row swaps as one permutation, (n − nd) × width: row k ← perm[k]
+  LaneLU(int n_, int nd_, int width_);
+};
+
 class LanePlant {
  public:
   // Why `scene` cannot be evaluated in lanes, or "" when it can.
@@ -67,6 +77,20 @@ class LanePlant {
   // start of a Newton iterate (ImplicitTerms::v_start).
   void evaluate(const double* q, const double* v, const LaneInputs& in, bool with_mass, LaneTerms& out,
                 double jacobian = 0.0, const double* v_start = nullptr);
+
+  // Each member's M − a D with M = Model::M_spin() + [Mb 0; 0 0] (Mb, D from LaneTerms) factored
+  // as StructuredLU::factor would (the same operations, each member's own pivots), into `out` for
+  // the members with need[l] (the others' factors stay); ok[l] false where StructuredLU::factor
+  // would return false (a zero or non-finite pivot).
+  void factor(const std::vector<double>& Mb, const std::vector<double>& D, double a, const char* need,
+              LaneLU& out, char* ok);
+  // x ← A⁻¹ x for every member at once (x nq × width, lane layout), A each member's factors in lu
+  // (StructuredLU::solve's operations in its order, lane by lane).
+  void solve(const LaneLU& lu, double* x) const;
+  // r = M x − (b F0 + a F1) for every member, M = Model::M_spin() + [Mb 0; 0 0] (Mb from a
+  // LaneTerms), x, F0, F1, r nq × width: implicit_contact's Newton residual.
+  void residual(const std::vector<double>& Mb, const double* x, const double* F0, const double* F1, double b,
+                double a, double* r) const;
 
   struct Constants;  // the plant's constants in the kernels' flat form (lanes.cpp)
   struct Workspace;  // the kernels' per-evaluation arrays (lanes.cpp)
@@ -100,26 +124,24 @@ class LaneStepper {
 
  private:
   struct Member {
-    StructuredLU lu;
     bool valid = false;
     std::uint64_t sig = 0;
     double h = 0.0;
     int age = 0;
-    explicit Member(int n) : lu(n) {}
   };
-  bool factor(int l, double a, double h, std::uint64_t sig, const std::vector<double>& D);
-  void solve(int l, double* x);  // x (lane layout) ← A⁻¹ x for member l
+  // The members with need_[l] refactored at `at` (M₀ from the step's start): their Jacobian count,
+  // signature, h and age; a failed factorization fails the member.
+  void factor(const LaneTerms& at, double a, double h, StepStatus* status);
 
   LanePlant& plant_;
   IntegratorOptions o_;
   int W_, nq_, n1_, J_;
-  MatrixXd M_spin_;
   std::vector<Member> m_;
+  LaneLU lu_;  // every member's factors, for the solves in lanes
   std::vector<IntegratorStats> stats_;
   LaneTerms t0_, t1_;  // at the step's start, at the Newton iterate
   std::vector<double> v1_, q1_, r_, tmp_;  // lane layout, nq × width
-  VectorXd x_;                             // one member's vector
-  std::vector<char> newton_, fresh_;       // per member: still iterating; needs a Jacobian
+  std::vector<char> newton_, need_, ok_, converged_;  // per member
 };
 
 }  // namespace pedalwave::model

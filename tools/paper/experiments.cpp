@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -31,96 +32,119 @@ long long periods_in(double seconds, double rate_hz) {
 
 double gait_period(const model::Scene& s) { return 2.0 * std::numbers::pi / std::abs(s.gait.omega); }
 
+// What a run measures, observed after every control period k (0 … n_periods) from the plant's
+// state: the COM for the average speed, the head's crossing, the stair events (every 10 ms) and the
+// trace samples. One per run, whether the run is stepped alone or in a lockstep group.
+class Measures {
+ public:
+  Measures(const RunSpec& spec, const model::Plant& plant)
+      : spec_(spec), m_(plant.model()), dd_(m_), tau_(m_.joints()) {
+    const double rate = spec.rate_hz;
+    if (!(rate > 0) || !std::isfinite(rate))
+      throw std::invalid_argument("control rate = " + std::to_string(rate) + " Hz: expected > 0");
+    n_periods_ = periods_in(spec.scene.duration, rate);
+    if (n_periods_ < 1)
+      throw std::invalid_argument("duration = " + std::to_string(spec.scene.duration) +
+                                  " s: expected a positive multiple of the control period");
+    if (spec.sample_every > 0) {
+      per_sample_ = periods_in(spec.sample_every, rate);
+      if (per_sample_ < 1)
+        throw std::invalid_argument("sample period = " + std::to_string(spec.sample_every) +
+                                    " s: expected a multiple of the control period");
+    }
+    const double t0 = std::isfinite(spec.avg_from) ? spec.avg_from : gait_period(spec.scene);
+    k_avg_ = std::llround(t0 * rate);
+    r_.resolved = plant.scene();
+    r_.avg_from = t0;
+    stair_.emplace(r_.resolved);
+    // Events are checked every 10 ms (cheap against the plant's steps, fine against 1 cm/s).
+    per_event_ = std::max<long long>(1, periods_in(0.01, rate));
+  }
+
+  long long periods() const { return n_periods_; }
+
+  // After period k (k = 0: the start), at plant time t and state q; eta_head the head joint's η as
+  // the controller will use it from this period on.
+  void observe(long long k, double t, const Eigen::VectorXd& q, double eta_head) {
+    const bool sample = per_sample_ > 0 && k % per_sample_ == 0;
+    const bool event = k % per_event_ == 0 || k == n_periods_;
+    if (!sample && !event && k != k_avg_) return;
+    model::update_kinematics(m_, dd_, q, no_v_);
+    const model::Vec2 com = model::center_of_mass(m_, dd_, q);
+    if (k == k_avg_) com_x_from_ = com.x();
+    r_.com_x_final = com.x();
+    const model::Vec2 head = model::point_position(m_, dd_, q, m_.point_head());
+    if (std::isfinite(spec_.cross_x) && std::isnan(r_.t_head_cross) && head.x() >= spec_.cross_x)
+      r_.t_head_cross = t;
+    stair_->observe(t, m_, dd_, q);
+    if (!sample) return;
+    const int P = m_.points(), head_joint = m_.joints() - 1;
+    Trace& tr = r_.trace;
+    const model::Vec2 tail = model::point_position(m_, dd_, q, m_.point_tail());
+    tr.t.push_back(t);
+    tr.com_x.push_back(com.x());
+    tr.com_z.push_back(com.y());
+    tr.head_x.push_back(head.x());
+    tr.head_z.push_back(head.y());
+    tr.tail_x.push_back(tail.x());
+    tr.tail_z.push_back(tail.y());
+    model::sea_torques(m_, q, tau_);
+    tr.tau_head.push_back(tau_(head_joint));
+    tr.eta_head.push_back(eta_head);
+    std::vector<double> bx(static_cast<std::size_t>(P)), bz(static_cast<std::size_t>(P));
+    for (int p = 0; p < P; ++p) {
+      const model::Vec2 pt = model::point_position(m_, dd_, q, p);
+      bx[static_cast<std::size_t>(p)] = pt.x();
+      bz[static_cast<std::size_t>(p)] = pt.y();
+    }
+    tr.body_x.push_back(std::move(bx));
+    tr.body_z.push_back(std::move(bz));
+  }
+
+  // The result of a run that reached plant time t_end with `status` in `steps` plant steps.
+  RunResult finish(model::StepStatus status, double t_end, std::uint64_t steps) {
+    r_.status = status;
+    r_.t_end = t_end;
+    const double t0 = r_.avg_from;
+    if (std::isfinite(com_x_from_) && r_.t_end > t0 + 1e-9 && std::isfinite(r_.com_x_final))
+      r_.avg_speed = (r_.com_x_final - com_x_from_) / (r_.t_end - t0);
+    r_.stair = stair_->events();
+    r_.steps = steps;
+    return std::move(r_);
+  }
+
+ private:
+  const RunSpec& spec_;
+  const model::Model& m_;
+  model::Data dd_;
+  Eigen::VectorXd tau_;
+  const Eigen::VectorXd no_v_;
+  long long n_periods_ = 0, per_sample_ = 0, per_event_ = 1, k_avg_ = 0;
+  double com_x_from_ = kNaN;
+  RunResult r_;
+  std::optional<simloop::StairWatch> stair_;
+};
+
 RunResult run(const RunSpec& spec) {
   const auto wall0 = std::chrono::steady_clock::now();
   const double cpu0 = thread_cpu_s();
   const double rate = spec.rate_hz;
   if (!(rate > 0) || !std::isfinite(rate))
     throw std::invalid_argument("control rate = " + std::to_string(rate) + " Hz: expected > 0");
-  const long long n_periods = periods_in(spec.scene.duration, rate);
-  if (n_periods < 1)
-    throw std::invalid_argument("duration = " + std::to_string(spec.scene.duration) +
-                                " s: expected a positive multiple of the control period");
-  long long per_sample = 0;
-  if (spec.sample_every > 0) {
-    per_sample = periods_in(spec.sample_every, rate);
-    if (per_sample < 1)
-      throw std::invalid_argument("sample period = " + std::to_string(spec.sample_every) +
-                                  " s: expected a multiple of the control period");
-  }
-  const double t0 = std::isfinite(spec.avg_from) ? spec.avg_from : gait_period(spec.scene);
-  const long long k_avg = std::llround(t0 * rate);
-
   simloop::ClosedLoop loop(spec.scene, simloop::Options{.rate_hz = rate, .controller = true, .k_c = spec.k_c},
                            spec.integ);
   model::Simulation& sim = loop.sim();
-  const model::Model& m = sim.plant().model();
-  const int P = m.points(), head_joint = m.joints() - 1;
-  model::Data dd(m);
-  const Eigen::VectorXd no_v;
-  Eigen::VectorXd tau(m.joints());
-
-  RunResult r;
-  r.resolved = sim.plant().scene();
-  r.avg_from = t0;
-  simloop::StairWatch stair(r.resolved);
-  // Events are checked every 10 ms (cheap against the plant's steps, fine against 1 cm/s).
-  const long long per_event = std::max<long long>(1, periods_in(0.01, rate));
-  double com_x_from = kNaN;
-
-  auto observe = [&](long long k) {
-    const Eigen::VectorXd& q = sim.q();
-    const double t = sim.t();
-    const bool sample = per_sample > 0 && k % per_sample == 0;
-    const bool event = k % per_event == 0 || k == n_periods;
-    if (!sample && !event && k != k_avg) return;
-    model::update_kinematics(m, dd, q, no_v);
-    const model::Vec2 com = model::center_of_mass(m, dd, q);
-    if (k == k_avg) com_x_from = com.x();
-    r.com_x_final = com.x();
-    const model::Vec2 head = model::point_position(m, dd, q, m.point_head());
-    if (std::isfinite(spec.cross_x) && std::isnan(r.t_head_cross) && head.x() >= spec.cross_x)
-      r.t_head_cross = t;
-    stair.observe(t, m, dd, q);
-    if (sample) {
-      Trace& tr = r.trace;
-      const model::Vec2 tail = model::point_position(m, dd, q, m.point_tail());
-      tr.t.push_back(t);
-      tr.com_x.push_back(com.x());
-      tr.com_z.push_back(com.y());
-      tr.head_x.push_back(head.x());
-      tr.head_z.push_back(head.y());
-      tr.tail_x.push_back(tail.x());
-      tr.tail_z.push_back(tail.y());
-      model::sea_torques(m, q, tau);
-      tr.tau_head.push_back(tau(head_joint));
-      // η of the head joint as the controller will use it from this period on (before the first
-      // update: the nominal η).
-      tr.eta_head.push_back(k == 0 ? spec.scene.gait.eta
-                                   : loop.control().eta[static_cast<std::size_t>(head_joint)]);
-      std::vector<double> bx(static_cast<std::size_t>(P)), bz(static_cast<std::size_t>(P));
-      for (int p = 0; p < P; ++p) {
-        const model::Vec2 pt = model::point_position(m, dd, q, p);
-        bx[static_cast<std::size_t>(p)] = pt.x();
-        bz[static_cast<std::size_t>(p)] = pt.y();
-      }
-      tr.body_x.push_back(std::move(bx));
-      tr.body_z.push_back(std::move(bz));
-    }
-  };
-
-  long long k = 0;
-  observe(0);
-  for (; k < n_periods; ++k) {
-    r.status = loop.step();
-    if (r.status != model::StepStatus::kOk) break;
-    observe(k + 1);
+  Measures meas(spec, sim.plant());
+  const int head_joint = sim.plant().model().joints() - 1;
+  const long long n_periods = meas.periods();
+  meas.observe(0, sim.t(), sim.q(), spec.scene.gait.eta);
+  model::StepStatus status = model::StepStatus::kOk;
+  for (long long k = 0; k < n_periods; ++k) {
+    status = loop.step();
+    if (status != model::StepStatus::kOk) break;
+    meas.observe(k + 1, sim.t(), sim.q(), loop.control().eta[static_cast<std::size_t>(head_joint)]);
   }
-  r.t_end = sim.t();
-  if (std::isfinite(com_x_from) && r.t_end > t0 + 1e-9 && std::isfinite(r.com_x_final))
-    r.avg_speed = (r.com_x_final - com_x_from) / (r.t_end - t0);
-  r.stair = stair.events();
-  r.steps = sim.integrator().stats().steps;
+  RunResult r = meas.finish(status, sim.t(), sim.integrator().stats().steps);
   r.cpu_s = thread_cpu_s() - cpu0;
   r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return r;

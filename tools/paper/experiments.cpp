@@ -13,6 +13,8 @@
 #include "pedalwave/config/scene.hpp"
 #include "pedalwave/model/dynamics.hpp"
 #include "pedalwave/model/kinematics.hpp"
+#include "pedalwave/model/lanes.hpp"
+#include "pedalwave/drivers/sim_driver.hpp"
 #include "pedalwave/model/plant.hpp"
 #include "pedalwave/simloop/closed_loop.hpp"
 #include "pedalwave/interface/clock.hpp"
@@ -150,6 +152,180 @@ RunResult run(const RunSpec& spec) {
   return r;
 }
 
+std::string lockstep_refusal(const RunSpec& base) {
+  if (model::LanePlant::machine_width() == 0) return "this machine has neither AVX-512 nor AVX2 with FMA";
+  if (base.integ.method != model::Method::kImplicitContact)
+    return std::string("the integrator is ") + std::string(model::to_string(base.integ.method)) +
+           ", not implicit_contact";
+  return model::LanePlant::unsupported(base.scene);
+}
+
+namespace {
+
+// One member of a lockstep group: what simloop::ClosedLoop and drivers::SimDriver hold for one run
+// (the controller and its state, the feedback and the command), its plant for the sensors, its
+// measures.
+struct Member {
+  RunSpec spec;
+  model::Plant plant;
+  control::GaitController ctl;
+  control::GaitControllerState state;
+  control::ControlOutput out{};
+  drivers::Feedback fb{};
+  drivers::Command cmd{};
+  model::Measurement meas;
+  Eigen::VectorXd q, v;
+  Measures measures;
+  bool done = false;
+  RunResult result;
+  Member(const RunSpec& s)
+      : spec(s), plant(s.scene), ctl(simloop::controller_params(s.scene, s.rate_hz, s.k_c)),
+        measures(spec, plant) {
+    state = ctl.make_state();
+    ctl.reset(state, 0.0);
+    const int J = plant.model().joints();
+    cmd.joints = J;
+    meas.beta = meas.beta_dot = meas.deflection = Eigen::VectorXd::Zero(J);
+  }
+};
+
+// Members [first, first + count) of specs stepped together in lanes of `width`; the unused lanes
+// carry copies of the last member.
+void run_lanes(const RunSpec& base, std::vector<Member>& members, int width) {
+  const double rate = base.rate_hz, period = 1.0 / rate, h = base.integ.h;
+  model::Plant plant(base.scene);
+  model::LanePlant lanes(plant, width);
+  model::LaneStepper stepper(lanes, plant, base.integ);
+  const int n = plant.nq(), J = plant.model().joints(), W = width;
+  const int m = static_cast<int>(members.size());
+  const auto lane = [&](int l) { return l < m ? l : m - 1; };
+  std::vector<double> q(static_cast<size_t>(n * W)), v(q.size());
+  {
+    Eigen::VectorXd q0, v0;
+    plant.initial_state(q0, v0);
+    for (int l = 0; l < W; ++l)
+      for (int i = 0; i < n; ++i) {
+        q[static_cast<size_t>(i * W + l)] = q0(i);
+        v[static_cast<size_t>(i * W + l)] = v0(i);
+      }
+    for (Member& mb : members) {
+      mb.q = q0;
+      mb.v = v0;
+    }
+  }
+  model::LaneInputs in = lanes.make_inputs();
+  std::vector<model::StepStatus> status(static_cast<size_t>(W), model::StepStatus::kOk);
+  std::vector<double> t_fail(static_cast<size_t>(W), 0.0);
+  const int head_joint = J - 1;
+  double t = 0.0;
+  for (Member& mb : members) mb.measures.observe(0, t, mb.q, mb.spec.scene.gait.eta);
+  const long long n_periods = members.front().measures.periods();
+  model::ActuatorInput input = plant.input();
+  int running = m;
+  for (long long k = 0; k < n_periods && running > 0; ++k) {
+    // Each member's loop: the sensors (SimDriver::read), the controller, the command into the
+    // plant's input (SimDriver::write), as simloop::ClosedLoop::step does.
+    for (int l = 0; l < m; ++l) {
+      Member& mb = members[static_cast<size_t>(l)];
+      if (mb.done) continue;
+      mb.plant.measure(mb.q, mb.v, mb.meas);
+      drivers::to_feedback(mb.meas, mb.fb);
+      mb.fb.seq = static_cast<std::uint64_t>(k + 1);
+      mb.fb.stamp_ns = static_cast<std::int64_t>(std::llround(t * 1e9));
+      mb.ctl.update(t, period, control::measurement_from(mb.fb), mb.state, mb.out);
+      mb.ctl.fill_command(mb.out, mb.cmd);
+      mb.cmd.seq = static_cast<std::uint64_t>(k + 1);
+      mb.cmd.joints = J;
+      drivers::to_actuator_input(mb.cmd, input);
+      for (int j = 0; j < J; ++j) {
+        const bool on = !input.torque_off;
+        const size_t x = static_cast<size_t>(j * W + l);
+        in.tau[x] = on ? input.tau(j) : 0.0;
+        in.kp[x] = on ? input.kp(j) : 0.0;
+        in.beta_ref[x] = on ? input.beta_ref(j) : 0.0;
+        in.kd[x] = on ? input.kd(j) : 0.0;
+        in.beta_dot_ref[x] = on ? input.beta_dot_ref(j) : 0.0;
+      }
+    }
+    for (int l = m; l < W; ++l)
+      for (int j = 0; j < J; ++j) {
+        const size_t x = static_cast<size_t>(j * W + l), y = static_cast<size_t>(j * W + lane(l));
+        in.tau[x] = in.tau[y];
+        in.kp[x] = in.kp[y];
+        in.beta_ref[x] = in.beta_ref[y];
+        in.kd[x] = in.kd[y];
+        in.beta_dot_ref[x] = in.beta_dot_ref[y];
+      }
+    // One control period of plant steps (model::Simulation::advance_to).
+    const double t_end = t + period;
+    while (t_end - t > 1e-12 * std::max(1.0, std::abs(t_end))) {
+      const double step = std::min(h, t_end - t);
+      for (int l = 0; l < W; ++l)
+        if (status[static_cast<size_t>(l)] == model::StepStatus::kOk) t_fail[static_cast<size_t>(l)] = t;
+      stepper.step(t, step, q.data(), v.data(), in, status.data());
+      t += step;
+    }
+    t = t_end;
+    for (int l = 0; l < m; ++l) {
+      Member& mb = members[static_cast<size_t>(l)];
+      if (mb.done) continue;
+      for (int i = 0; i < n; ++i) {
+        mb.q(i) = q[static_cast<size_t>(i * W + l)];
+        mb.v(i) = v[static_cast<size_t>(i * W + l)];
+      }
+      if (status[static_cast<size_t>(l)] != model::StepStatus::kOk) {
+        mb.result = mb.measures.finish(status[static_cast<size_t>(l)], t_fail[static_cast<size_t>(l)], stepper.stats(l).steps);
+        mb.done = true;
+        --running;
+        continue;
+      }
+      mb.measures.observe(k + 1, t, mb.q, mb.out.eta[static_cast<std::size_t>(head_joint)]);
+    }
+  }
+  for (int l = 0; l < m; ++l) {
+    Member& mb = members[static_cast<size_t>(l)];
+    if (!mb.done) mb.result = mb.measures.finish(model::StepStatus::kOk, t, stepper.stats(l).steps);
+  }
+}
+
+}  // namespace
+
+std::vector<RunResult> run_group(const RunSpec& base, const std::vector<double>& k_c, bool lanes) {
+  std::vector<RunResult> out;
+  out.reserve(k_c.size());
+  const int width = model::LanePlant::machine_width();
+  if (!lanes || !lockstep_refusal(base).empty()) {
+    for (double k : k_c) {
+      RunSpec s = base;
+      s.k_c = k;
+      out.push_back(run(s));
+    }
+    return out;
+  }
+  for (size_t first = 0; first < k_c.size(); first += static_cast<size_t>(width)) {
+    const auto wall0 = std::chrono::steady_clock::now();
+    const double cpu0 = thread_cpu_s();
+    std::vector<Member> members;
+    const size_t count = std::min(k_c.size() - first, static_cast<size_t>(width));
+    members.reserve(count);
+    for (size_t i = 0; i < count; ++i) {
+      RunSpec s = base;
+      s.k_c = k_c[first + i];
+      members.emplace_back(s);
+    }
+    run_lanes(base, members, width);
+    const double cpu = (thread_cpu_s() - cpu0) / static_cast<double>(count);
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count() /
+                        static_cast<double>(count);
+    for (Member& mb : members) {
+      mb.result.cpu_s = cpu;
+      mb.result.wall_s = wall;
+      out.push_back(std::move(mb.result));
+    }
+  }
+  return out;
+}
+
 std::vector<std::size_t> negative_peaks(const std::vector<double>& t, const std::vector<double>& y,
                                         double window) {
   if (t.size() != y.size())
@@ -259,6 +435,56 @@ RunResult decode_result(const std::string& line) {
   return x;
 }
 
-std::string run_line(const std::string& line) { return encode_result(run(decode_spec(line))); }
+std::string encode_group(const RunSpec& base, const std::vector<double>& k_c, bool lanes,
+                         const std::string& scene_name, const std::string& scene_text) {
+  std::string gains;
+  for (double k : k_c) gains += (gains.empty() ? "" : ",") + campaign::hex(k);
+  campaign::Record r;
+  r.put_text("kind", "paper.group")
+      .put_text("base", encode_spec(base, scene_name, scene_text))
+      .put_text("k_c", gains)
+      .put_int("lanes", lanes ? 1 : 0);
+  return r.line();
+}
+
+namespace {
+std::string run_group_line(const campaign::Record& r) {
+  const RunSpec base = decode_spec(r.text("base"));
+  std::vector<double> k_c;
+  const std::string gains = r.text("k_c");
+  for (size_t b = 0; b < gains.size();) {
+    size_t e = gains.find(',', b);
+    if (e == std::string::npos) e = gains.size();
+    const std::string one = gains.substr(b, e - b);
+    char* end = nullptr;
+    const double k = std::strtod(one.c_str(), &end);
+    if (one.empty() || end != one.c_str() + one.size())
+      throw std::invalid_argument("run group: k_c = " + gains + ": expected a comma-separated list of numbers");
+    k_c.push_back(k);
+    b = e + 1;
+  }
+  if (k_c.empty()) throw std::invalid_argument("run group: k_c is empty: expected at least one gain");
+  const std::vector<RunResult> res = run_group(base, k_c, r.integer("lanes") != 0);
+  campaign::Record o;
+  o.put_int("members", static_cast<long long>(res.size()));
+  for (size_t i = 0; i < res.size(); ++i) o.put_text("r" + std::to_string(i), encode_result(res[i]));
+  return o.line();
+}
+}  // namespace
+
+std::vector<RunResult> decode_group_result(const std::string& line) {
+  const campaign::Record r = campaign::Record::parse(line, "pedalwave_paper group result");
+  const long long n = r.integer("members");
+  if (n < 1) throw std::invalid_argument("group result: members = " + std::to_string(n) + ": expected ≥ 1");
+  std::vector<RunResult> out;
+  for (long long i = 0; i < n; ++i) out.push_back(decode_result(r.text("r" + std::to_string(i))));
+  return out;
+}
+
+std::string run_line(const std::string& line) {
+  const campaign::Record r = campaign::Record::parse(line, "pedalwave_paper run specification");
+  if (r.text("kind") == "paper.group") return run_group_line(r);
+  return encode_result(run(decode_spec(line)));
+}
 
 }  // namespace pedalwave::paper

@@ -74,6 +74,17 @@ struct RunResult {
 // the time reached).
 RunResult run(const RunSpec& spec);
 
+// Runs of `base` at each of `k_c` (the k_c sweep's members: the same scene, integrator and rate,
+// only the adaptive gain differs), in run()'s order of results. Stepped in lockstep, their plants'
+// arithmetic in SIMD lanes (model::LanePlant, LaneStepper: each member's controller, commands,
+// Jacobian refreshes and Newton iterations its own), when `lanes` is true, the machine has AVX2 or
+// AVX-512, the scene is one LanePlant runs and the integrator is implicit_contact; else each with
+// run(). Either way a member's result is run()'s to rounding (its plant the scalar one's to 1e-14
+// per step; tests/tools/paper_lanes_test.cpp). cpu_s and wall_s: the group's, shared equally.
+std::vector<RunResult> run_group(const RunSpec& base, const std::vector<double>& k_c, bool lanes = true);
+// Whether run_group steps `base` in lanes on this machine, or why not ("" = it does).
+std::string lockstep_refusal(const RunSpec& base);
+
 // Gait period 2π/|ω| of a scene [s].
 double gait_period(const model::Scene& s);
 
@@ -99,7 +110,13 @@ RunSpec decode_spec(const std::string& line);
 // Every scalar of a result (not the trace nor the resolved scene), exact.
 std::string encode_result(const RunResult& r);
 RunResult decode_result(const std::string& line);
-// The campaign's runner: encode_result(run(decode_spec(line))).
+// A group of runs (run_group) as one specification line: encode_spec's fields and the gains
+// (kind paper.group); its result line holds every member's encode_result.
+std::string encode_group(const RunSpec& base, const std::vector<double>& k_c, bool lanes,
+                         const std::string& scene_name, const std::string& scene_text);
+std::vector<RunResult> decode_group_result(const std::string& line);
+// The campaign's runner: encode_result(run(decode_spec(line))) for a run, the members' results of
+// run_group for a group.
 std::string run_line(const std::string& line);
 
 }  // namespace pedalwave::paper

@@ -51,6 +51,7 @@ struct Common {
   std::string scene_prefix;
   bool no_plots = false;
   bool quiet = false;
+  bool no_lanes = false;
   pedalwave::campaign::cli::CliOptions campaign;
 };
 
@@ -75,6 +76,9 @@ void add_common(CLI::App* sub, Common& c) {
                   "(all runs both: the shipped scenes, then the paper_fit_* ones into DIR/paper_fit)");
   sub->add_flag("--no-plots", c.no_plots, "write no figures");
   sub->add_flag("--quiet", c.quiet, "no progress bars");
+  sub->add_flag("--no-lanes", c.no_lanes,
+                "step the sweep's runs one by one on the scalar plant (default: 8 at a time in lockstep, their "
+                "plants in SIMD lanes, where the machine and the scene allow)");
   // Default campaign folder: <--out>/campaign (an empty dir here).
   pedalwave::campaign::cli::add_options(sub, c.campaign, "");
 }
@@ -93,6 +97,7 @@ paper::Settings settings(const Common& c) {
   s.scene_prefix = c.scene_prefix;
   s.plots = !c.no_plots;
   s.progress = !c.quiet;
+  s.lanes = !c.no_lanes;
   s.campaign = pedalwave::campaign::cli::options(c.campaign, c.jobs, s.progress);
   return s;
 }

@@ -1,5 +1,7 @@
 #include "paper.hpp"
 
+#include "pedalwave/model/lanes.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <chrono>
@@ -85,15 +87,19 @@ std::vector<RunResult> run_all(const Settings& s, const std::vector<RunSpec>& sp
   return out;
 }
 
-// Runs the specs as a campaign (Settings::campaign: threads or Slurm job arrays); every spec's
-// scene is the one read from `scene_text` (only the duration set). Results in spec order,
-// bit-identical between backends (each run goes through its one-line text either way).
-std::vector<RunResult> run_campaign(const Settings& s, const std::vector<RunSpec>& specs, const std::string& name,
-                                    const std::string& scene_name, const std::string& scene_text,
-                                    double* wall_s = nullptr) {
+// Runs of `base` at each gain of `k_c` as a campaign of groups of up to kGroup consecutive gains
+// (run_group: in lockstep lanes where Settings::lanes, the machine and the scene allow), the
+// results in k_c's order.
+constexpr std::size_t kGroup = 8;
+std::vector<RunResult> run_group_campaign(const Settings& s, const RunSpec& base, const std::vector<double>& k_c,
+                                          const std::string& name, const std::string& scene_name,
+                                          const std::string& scene_text, double* wall_s = nullptr) {
   std::vector<std::string> lines;
-  lines.reserve(specs.size());
-  for (const RunSpec& r : specs) lines.push_back(encode_spec(r, scene_name, scene_text));
+  for (std::size_t i = 0; i < k_c.size(); i += kGroup) {
+    const std::vector<double> g(k_c.begin() + static_cast<std::ptrdiff_t>(i),
+                                k_c.begin() + static_cast<std::ptrdiff_t>(std::min(k_c.size(), i + kGroup)));
+    lines.push_back(encode_group(base, g, s.lanes, scene_name, scene_text));
+  }
   campaign::Options o = s.campaign;
   o.jobs = s.jobs;
   o.progress = s.progress;
@@ -102,9 +108,23 @@ std::vector<RunResult> run_campaign(const Settings& s, const std::vector<RunSpec
   const std::vector<std::string> res = campaign::run(name, lines, run_line, o);
   if (wall_s) *wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
   std::vector<RunResult> out;
-  out.reserve(res.size());
-  for (const std::string& r : res) out.push_back(decode_result(r));
+  out.reserve(k_c.size());
+  for (const std::string& r : res)
+    for (RunResult& x : decode_group_result(r)) out.push_back(std::move(x));
+  if (out.size() != k_c.size())
+    throw std::runtime_error("campaign " + name + ": " + std::to_string(out.size()) + " results for " +
+                             std::to_string(k_c.size()) + " runs");
   return out;
+}
+
+// How the sweep's runs are stepped, for the console: "8 at a time in AVX-512 lanes" or why not.
+std::string lanes_note(const Settings& s, const RunSpec& base) {
+  if (!s.lanes) return "one by one (--no-lanes)";
+  const std::string why = lockstep_refusal(base);
+  if (!why.empty()) return "one by one (not in lanes: " + why + ")";
+  const int w = model::LanePlant::machine_width();
+  return std::to_string(kGroup) + " at a time in lockstep, " + std::to_string(w) + " per SIMD vector (" +
+         (w == 8 ? "AVX-512" : "AVX2") + ")";
 }
 
 // The campaign name of a sweep over the box scene (its folder under the campaign dir): "sweep"
@@ -561,6 +581,7 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
   const auto grid = sweep_grid(o.from, o.to, o.step);
   const model::Scene sc = load(s, s.stair_scene);
   const std::string sc_text = read_file(scene_file(s, s.stair_scene));
+  const RunSpec base = make_spec(s, sc, o.duration, 0.0, 0.0);
   say(s, "sweep_start.txt.in",
       {{"scene", s.scene_prefix + s.stair_scene},
        {"runs", std::to_string(grid.size())},
@@ -569,12 +590,12 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
        {"step", fmt(o.step)},
        {"duration", plain(o.duration)},
        {"integrator", describe_integ(s, sc)},
-       {"where", s.campaign.backend == campaign::Backend::slurm
-                     ? "Slurm job arrays of " + std::to_string(s.campaign.slurm.chunk) + " runs per task"
-                     : std::to_string(s.jobs) + " threads"}});
-  std::vector<RunSpec> specs;
-  for (double k : grid) specs.push_back(make_spec(s, sc, o.duration, k, 0.0));
-  const auto res = run_campaign(s, specs, sweep_campaign(s, "sweep"), s.stair_scene, sc_text, &out.wall_s);
+       {"where", (s.campaign.backend == campaign::Backend::slurm
+                      ? "Slurm job arrays of " + std::to_string(s.campaign.slurm.chunk) + " groups per task"
+                      : std::to_string(s.jobs) + " threads") +
+                     ", runs " + lanes_note(s, base)}});
+  const auto res =
+      run_group_campaign(s, base, grid, sweep_campaign(s, "sweep"), s.stair_scene, sc_text, &out.wall_s);
   for (std::size_t i = 0; i < grid.size(); ++i) {
     out.points.push_back({grid[i], res[i].avg_speed, res[i].stair, res[i].status, res[i].cpu_s});
     out.cpu_s += res[i].cpu_s;
@@ -620,9 +641,8 @@ SweepResult sweep(const Settings& s, const SweepOptions& o) {
     Settings fine = s;
     fine.integ = integ_of(s, sc);
     fine.integ->h = o.check_h;
-    std::vector<RunSpec> cs;
-    for (double k : uniq) cs.push_back(make_spec(fine, sc, o.duration, k, 0.0));
-    const auto cr = run_campaign(s, cs, sweep_campaign(s, "sweep-check"), s.stair_scene, sc_text);
+    const auto cr = run_group_campaign(s, make_spec(fine, sc, o.duration, 0.0, 0.0), uniq,
+                                       sweep_campaign(s, "sweep-check"), s.stair_scene, sc_text);
     for (std::size_t i = 0; i < uniq.size(); ++i) {
       SweepCheck c{uniq[i], kNaN, cr[i].avg_speed};
       for (const SweepPoint& p : out.points)

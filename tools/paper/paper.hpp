@@ -56,6 +56,9 @@ struct Settings {
   // slurm (job arrays; campaign folders under campaign.slurm.dir, empty = out_dir/campaign). Its
   // jobs and progress are this struct's.
   campaign::Options campaign;
+  // The sweep's runs 8 at a time in lockstep, their plants in SIMD lanes (run_group), where the
+  // machine and the scene allow; false: one by one on the scalar plant.
+  bool lanes = true;
   bool progress = true;                      // progress bars on stderr
   bool plots = true;                         // write figures
   std::ostream* log = nullptr;               // printed numbers (nullptr = std::cout)

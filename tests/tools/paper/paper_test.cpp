@@ -184,6 +184,108 @@ TEST_F(Paper, CampaignLocalBackendGivesTheDirectRunsBitForBit) {
   EXPECT_THROW((void)paper::decode_spec("kind=other"), std::invalid_argument);
 }
 
+// run_group: the k_c sweep's members stepped in lockstep, their plants in SIMD lanes, each give
+// what run() gives that run alone — the same status, plant steps and event times, the speed, the
+// final COM and the trace to rounding (the lanes' plant equals the scalar one to ~1e-14 per step) —
+// with ten members (a full group of 8 and one of 2, its free lanes padded), one of them failing
+// (k_c = 1e5: the plant's state leaves the finite numbers) while the others go on. Without lanes
+// (lanes false, or a scene the lanes do not run) run_group is run() bit for bit.
+TEST_F(Paper, LockstepGroupGivesEachRunsResultToRounding) {
+  const paper::Settings s = settings(1, "group");
+  paper::RunSpec base;
+  base.scene = paper::load(s, "stair");
+  base.scene.duration = 6.0;
+  base.integ = paper::integ_of(s, base.scene);
+  base.sample_every = 0.05;
+  const std::string why = paper::lockstep_refusal(base);
+  if (!why.empty()) GTEST_SKIP() << "SKIPPED LOUDLY: the stair does not run in lanes here: " << why;
+  const std::vector<double> ks{0.0, 1.3, 2.5, 1e5, 5.0, 7.5, 10.1, 12.0, 15.0, 3.3};
+  const std::vector<paper::RunResult> group = paper::run_group(base, ks, true);
+  ASSERT_EQ(group.size(), ks.size());
+  double lo = 1e9, hi = -1e9;
+  for (std::size_t i = 0; i < ks.size(); ++i) {
+    SCOPED_TRACE("k_c = " + std::to_string(ks[i]));
+    paper::RunSpec one = base;
+    one.k_c = ks[i];
+    const paper::RunResult d = paper::run(one);
+    const paper::RunResult& g = group[i];
+    EXPECT_EQ(g.status, d.status);
+    EXPECT_EQ(g.steps, d.steps);
+    EXPECT_EQ(g.t_end, d.t_end);
+    auto same = [](double a, double b) { return a == b || (std::isnan(a) && std::isnan(b)); };
+    EXPECT_TRUE(same(g.stair.t_head_on_top, d.stair.t_head_on_top)) << g.stair.t_head_on_top << " vs " << d.stair.t_head_on_top;
+    EXPECT_TRUE(same(g.stair.t_com_past, d.stair.t_com_past)) << g.stair.t_com_past << " vs " << d.stair.t_com_past;
+    EXPECT_TRUE(same(g.stair.max_head_z, d.stair.max_head_z) || std::abs(g.stair.max_head_z - d.stair.max_head_z) <= 1e-12)
+        << g.stair.max_head_z << " vs " << d.stair.max_head_z;
+    if (ks[i] == 1e5) {
+      EXPECT_EQ(g.status, pedalwave::model::StepStatus::kNonFinite) << "the member meant to fail did not";
+      continue;
+    }
+    ASSERT_EQ(d.status, pedalwave::model::StepStatus::kOk);
+    EXPECT_NEAR(g.avg_speed, d.avg_speed, 1e-12);
+    EXPECT_NEAR(g.com_x_final, d.com_x_final, 1e-12);
+    ASSERT_EQ(g.trace.t.size(), d.trace.t.size());
+    for (std::size_t k = 0; k < d.trace.t.size(); ++k) {
+      EXPECT_EQ(g.trace.t[k], d.trace.t[k]);
+      EXPECT_NEAR(g.trace.com_x[k], d.trace.com_x[k], 1e-12) << "sample " << k;
+      EXPECT_NEAR(g.trace.tau_head[k], d.trace.tau_head[k], 1e-9) << "sample " << k;
+      EXPECT_NEAR(g.trace.eta_head[k], d.trace.eta_head[k], 1e-12) << "sample " << k;
+    }
+    lo = std::min(lo, g.avg_speed);
+    hi = std::max(hi, g.avg_speed);
+  }
+  EXPECT_GT(hi - lo, 1e-5) << "the members' k_c did not reach their controllers";
+  // Without lanes: run() itself.
+  const std::vector<paper::RunResult> plain = paper::run_group(base, {2.5}, false);
+  paper::RunSpec one = base;
+  one.k_c = 2.5;
+  EXPECT_EQ(std::bit_cast<std::uint64_t>(plain[0].avg_speed), std::bit_cast<std::uint64_t>(paper::run(one).avg_speed));
+  paper::RunSpec euler = base;
+  euler.integ.method = pedalwave::model::Method::kSemiImplicitEuler;
+  euler.integ.h = 2.5e-4;
+  EXPECT_NE(paper::lockstep_refusal(euler), "");
+}
+
+// A group through its one-line text and the campaign's local backend: the direct run_group's
+// results bit for bit, in order; a malformed gain list is named.
+TEST_F(Paper, GroupLinesThroughTheCampaignGiveTheDirectGroupBitForBit) {
+  const paper::Settings s = settings(2, "group_campaign");
+  paper::RunSpec base;
+  base.scene = paper::load(s, "stair");
+  base.scene.duration = 3.0;
+  base.integ = paper::integ_of(s, base.scene);
+  const std::string text = slurp(paper::scene_file(s, "stair"));
+  const std::vector<std::vector<double>> groups{{0.0, 4.0, 8.0}, {10.1}};
+  std::vector<std::string> lines;
+  for (const auto& g : groups) lines.push_back(paper::encode_group(base, g, true, "stair", text));
+  pedalwave::campaign::Options o;
+  o.jobs = 2;
+  o.progress = false;
+  const std::vector<std::string> out = pedalwave::campaign::run("g", lines, paper::run_line, o);
+  ASSERT_EQ(out.size(), groups.size());
+  for (std::size_t i = 0; i < groups.size(); ++i) {
+    const std::vector<paper::RunResult> c = paper::decode_group_result(out[i]);
+    const std::vector<paper::RunResult> d = paper::run_group(base, groups[i], true);
+    ASSERT_EQ(c.size(), groups[i].size());
+    for (std::size_t j = 0; j < c.size(); ++j) {
+      EXPECT_EQ(std::bit_cast<std::uint64_t>(c[j].avg_speed), std::bit_cast<std::uint64_t>(d[j].avg_speed));
+      EXPECT_EQ(std::bit_cast<std::uint64_t>(c[j].com_x_final), std::bit_cast<std::uint64_t>(d[j].com_x_final));
+      EXPECT_EQ(c[j].steps, d[j].steps);
+      EXPECT_TRUE(std::isfinite(c[j].avg_speed));
+    }
+  }
+  std::string bad = lines[0];
+  const auto at = bad.rfind("\tk_c=");  // the group's list (the base's own k_c is inside its text)
+  ASSERT_NE(at, std::string::npos);
+  bad.replace(at, 5, "\tk_c=zero,");
+  try {
+    (void)paper::run_line(bad);
+    ADD_FAILURE() << "a malformed gain list was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("expected a comma-separated list of numbers"), std::string::npos) << e.what();
+  }
+}
+
 TEST_F(Paper, AdaptiveGainReachesTheControllerAndZeroKeepsTheNominalEta) {
   paper::Settings s = settings(1, "eta");
   paper::RunSpec spec;

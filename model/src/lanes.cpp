@@ -53,6 +53,11 @@ struct LanePlant::Workspace {
   std::uint64_t sig[kMaxWidth];
   alignas(64) double y[(2 * kMaxLinks + 1) * kMaxWidth];  // a solve's permuted right-hand side
   alignas(64) double A[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1) * kMaxWidth];  // a factorization's matrix
+  // The Jacobian's contacts not yet added to its block (the kernel's jacobian_flush): each four
+  // rows of nq1 entries.
+  static constexpr int kContacts = 32;
+  int nj = 0;
+  alignas(64) double jl[kContacts * 4 * (kMaxLinks + 2) * kMaxWidth];
 };
 
 namespace {
@@ -63,6 +68,8 @@ namespace {
 #define PW_LANES_SIN _ZGVeN8v_sin
 #define PW_LANES_COS _ZGVeN8v_cos
 #define PW_LANES_NATIVE __m512d
+#define PW_LANES_ANY(m) (_mm512_test_epi64_mask((__m512i)(m), (__m512i)(m)) != 0)
+#define PW_LANES_SQRT(x) _mm512_mask_sqrt_pd((x), 0xFF, (x))  // _mm512_sqrt_pd: GCC 12 bug 105593
 #include "lanes_kernel.inc"
 #undef PW_LANES_NS
 #undef PW_LANES_W
@@ -70,6 +77,8 @@ namespace {
 #undef PW_LANES_SIN
 #undef PW_LANES_COS
 #undef PW_LANES_NATIVE
+#undef PW_LANES_ANY
+#undef PW_LANES_SQRT
 
 #define PW_LANES_NS avx2
 #define PW_LANES_W 4
@@ -77,6 +86,8 @@ namespace {
 #define PW_LANES_SIN _ZGVdN4v_sin
 #define PW_LANES_COS _ZGVdN4v_cos
 #define PW_LANES_NATIVE __m256d
+#define PW_LANES_ANY(m) (_mm256_testz_si256((__m256i)(m), (__m256i)(m)) == 0)
+#define PW_LANES_SQRT(x) _mm256_sqrt_pd(x)
 #include "lanes_kernel.inc"
 #undef PW_LANES_NS
 #undef PW_LANES_W
@@ -84,6 +95,8 @@ namespace {
 #undef PW_LANES_SIN
 #undef PW_LANES_COS
 #undef PW_LANES_NATIVE
+#undef PW_LANES_ANY
+#undef PW_LANES_SQRT
 
 }  // namespace
 
@@ -198,11 +211,11 @@ void LanePlant::evaluate(const double* q, const double* v, const LaneInputs& in,
   const double* const inputs[5] = {in.tau.data(), in.kp.data(), in.beta_ref.data(), in.kd.data(),
                                    in.beta_dot_ref.data()};
   if (width_ == 8) {
-    const avx512::Jac jac{jacobian, out.D.data(), nq_, v_start};
+    const avx512::Jac jac{with_mass, jacobian, out.D.data(), nq_, v_start};
     avx512::evaluate(*c_, *w_, q, v, inputs, with_mass, jac, out.F.data(), out.Mb.data(), out.dFdq_v.data(),
                      out.signature.data());
   } else {
-    const avx2::Jac jac{jacobian, out.D.data(), nq_, v_start};
+    const avx2::Jac jac{with_mass, jacobian, out.D.data(), nq_, v_start};
     avx2::evaluate(*c_, *w_, q, v, inputs, with_mass, jac, out.F.data(), out.Mb.data(), out.dFdq_v.data(),
                    out.signature.data());
   }

@@ -141,7 +141,9 @@ TEST(LanePlant, EachMemberAsThePlantEvaluatesIt) {
           }
           EXPECT_LE(rel_diff(F, ref.F), 1e-12) << "round " << round << ", member " << l << "\nF lanes " << F.transpose()
                                                << "\nF plant " << ref.F.transpose();
-          EXPECT_LE(rel_diff(dqv, ref.dFdq_v), 1e-12) << "round " << round << ", member " << l;
+          if (with_mass) {
+            EXPECT_LE(rel_diff(dqv, ref.dFdq_v), 1e-12) << "round " << round << ", member " << l;
+          }
           EXPECT_EQ(out.signature[static_cast<size_t>(l)], ref.signature) << "round " << round << ", member " << l;
           if (with_mass) {
             MatrixXd M = m.M_spin();

@@ -6,7 +6,9 @@
 #   after   --integrator $AFTER_METHOD --h $AFTER_H (default implicit_contact 1e-3 s) --rate
 #           $AFTER_RATE (default 1000 Hz, the paper's; 500 with AFTER_H=2e-3 is a 2-ms step, the
 #           controller's references then held for 2 ms: a different experiment, checked here
-#           against the same 1-kHz reference)
+#           against the same 1-kHz reference), its runs 8 at a time in lockstep SIMD lanes where
+#           the machine has AVX2 or AVX-512 (the tool's default)
+#   after, one by one   the same with --no-lanes (each run on the scalar plant)
 #   ref     dopri45 (rtol 1e-6) at k_c = 0, 5, 10, 15
 # Prints CPU (user + sys of the whole process, /usr/bin/time) and wall time of each sweep, their
 # ratio, and each sweep's largest COM difference from the reference over those four k_c:
@@ -36,6 +38,7 @@ run() {
 
 run before --integrator "$BEFORE_METHOD" --h "$BEFORE_H"
 run after --integrator "$AFTER_METHOD" --h "$AFTER_H" --rate "$AFTER_RATE"
+run after_scalar --integrator "$AFTER_METHOD" --h "$AFTER_H" --rate "$AFTER_RATE" --no-lanes
 run ref --from 0 --to 15 --step 5 --integrator dopri45 --h 1e-4
 
 /usr/bin/python3 - "$OUT" "$DURATION" "$AFTER_METHOD" "$AFTER_H" "$BEFORE_METHOD" "$BEFORE_H" "$AFTER_RATE" <<'EOF'
@@ -55,7 +58,9 @@ print("| sweep | integrator | CPU [s] | wall [s] | CPU ratio to before | max COM
 print("|---|---|---:|---:|---:|---:|")
 cpu0, _ = times("before")
 after = f"{method}, h = {h} s" + ("" if rate == 1000 else f", control rate {rate:g} Hz")
-for name, integ in (("before", f"{bmethod}, h = {bh} s"), ("after", after)):
+lanes = next((l.rsplit(", runs ", 1)[1].strip() for l in open(f"{out}/after.log") if l.startswith("== k_c sweep")), "?")
+for name, integ in (("before", f"{bmethod}, h = {bh} s"), ("after", after + f"; runs {lanes}"),
+                    ("after_scalar", after + "; runs one by one (--no-lanes)")):
     cpu, wall = times(name)
     v = speeds(name)
     diff = max(abs(v[k] - ref[k]) * window for k in ref) * 1e3

@@ -72,8 +72,9 @@ class LanePlant {
   LaneTerms make_terms() const;
   LaneInputs make_inputs() const;
 
-  // The terms at (q, v) (nq × width each, lane layout) with the members' commands; Mb only when
-  // with_mass; D only when jacobian = a > 0, then with v_start (nq × width, or null) the step's
+  // The terms at (q, v) (nq × width each, lane layout) with the members' commands; Mb and dFdq_v
+  // only when with_mass (what a step's start needs; its Newton iterates need neither); D only when
+  // jacobian = a > 0, then with v_start (nq × width, or null) the step's
   // start of a Newton iterate (ImplicitTerms::v_start).
   void evaluate(const double* q, const double* v, const LaneInputs& in, bool with_mass, LaneTerms& out,
                 double jacobian = 0.0, const double* v_start = nullptr);

@@ -35,6 +35,7 @@ struct LanePlant::Constants {
   int n_spin = 0;
   int spin_r[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1)] = {}, spin_c[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1)] = {};
   double spin_v[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1)] = {};
+  double spin_dense[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1)] = {};  // M_spin, row-major
   int nq = 0, nq1 = 0;
 };
 
@@ -163,13 +164,15 @@ LanePlant::LanePlant(const Plant& plant, int width)
   c.nq = m.nq();
   c.nq1 = m.nq1();
   for (int col = 0; col < m.nq(); ++col)
-    for (int r = 0; r < m.nq(); ++r)
+    for (int r = 0; r < m.nq(); ++r) {
+      c.spin_dense[r * m.nq() + col] = m.M_spin()(r, col);
       if (m.M_spin()(r, col) != 0.0) {
         c.spin_r[c.n_spin] = r;
         c.spin_c[c.n_spin] = col;
         c.spin_v[c.n_spin] = m.M_spin()(r, col);
         ++c.n_spin;
       }
+    }
   c.n_boxes = static_cast<int>(sc.boxes.size());
   for (int i = 0; i < c.n_boxes; ++i) {
     const Box& b = sc.boxes[static_cast<size_t>(i)];
@@ -239,7 +242,9 @@ void LanePlant::residual(const std::vector<double>& Mb, const double* x, const d
 LaneLU::LaneLU(int n_, int nd_, int width_)
     : n(n_), nd(nd_), width(width_), A(static_cast<size_t>(n_ * n_ * width_), 0.0),
       d_inv(static_cast<size_t>(nd_ * width_), 0.0), u_inv(static_cast<size_t>((n_ - nd_) * width_), 0.0),
-      perm(static_cast<size_t>((n_ - nd_) * width_), 0) {
+      perm(static_cast<size_t>((n_ - nd_) * width_), 0),
+      Z(static_cast<size_t>((n_ - nd_) * (n_ - nd_) * width_), 0.0),
+      key(static_cast<size_t>(3 * nd_ * width_), 0.0), motor_ok(static_cast<size_t>(width_), 0.0) {
   for (int k = 0; k < n - nd; ++k)
     for (int l = 0; l < width; ++l) perm[static_cast<size_t>(k * width + l)] = k;
 }

@@ -14,6 +14,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -46,6 +47,11 @@ struct LaneLU {
   std::vector<double> d_inv;   // nd × width
   std::vector<double> u_inv;   // (n − nd) × width
   std::vector<int> perm;       // the row swaps as one permutation, (n − nd) × width: row k ← perm[k]
+  // The motor block's part as it was last computed (LanePlant::factor): Z = C A21, (n − nd)² ×
+  // width; the entries of D it came from (D(β_j, β_j), D(α_j, β_j), D(β_j, α_j)), 3 nd × width, and
+  // a; whether A22's pivots were good (1/0), width.
+  std::vector<double> Z, key, motor_ok;
+  double key_a = std::numeric_limits<double>::quiet_NaN();
   LaneLU(int n_, int nd_, int width_);
 };
 

@@ -21,6 +21,7 @@ struct LanePlant::Constants {
   double s[kMaxLinks] = {};
   double K[kMaxLinks] = {};
   double I_l = 0, m_total = 0, g = 0;
+  double l = 0;  // half a link's length [m]: from one body point to the next
   bool ground_on = false;
   double gz = 0, gk = 0, gd = 0, gmu = 0, v_s = 0;
   int n_patches = 0;
@@ -147,6 +148,7 @@ LanePlant::LanePlant(const Plant& plant, int width)
   for (int i = 0; i < c.N; ++i) c.s[i] = m.s()(i);
   for (int j = 0; j < m.joints(); ++j) c.K[j] = m.K()(j);
   c.I_l = m.params().I_l;
+  c.l = m.params().l;
   c.m_total = m.total_mass();
   c.g = m.params().g;
   const Ground& g = sc.ground;

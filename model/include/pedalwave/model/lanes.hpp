@@ -30,7 +30,8 @@ struct LaneTerms {
                                   // whole M is Model::M_spin() + [Mb 0; 0 0]
   std::vector<double> dFdq_v;     // D_q v with ∂F/∂q's stiff terms (ImplicitTerms::dFdq_v), nq × width
   std::vector<double> D;          // with a Jacobian asked for: ∂F/∂v + a ∂F/∂q (ImplicitTerms::dFdv
-                                  // with dq_in_dv = a), nq × nq (column-major) × width
+                                  // with dq_in_dv = a), nq × nq (column-major) × width; its structural
+                                  // zeros are written by make_terms() only
   std::vector<std::uint64_t> signature;  // ImplicitTerms::signature per member, width
 };
 

@@ -32,8 +32,9 @@ struct LanePlant::Constants {
   };
   int n_boxes = 0;
   BoxC box[kMaxBoxes] = {};
-  // M_spin's nonzero entries (row, column, value), for the Newton residual.
-  int n_spin = 0;
+  // M_spin's nonzero entries (row, column, value): the body block's first (n_spin_body of them,
+  // added to Mb), then the motor rows' and columns' (the Newton residual's).
+  int n_spin = 0, n_spin_body = 0;
   int spin_r[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1)] = {}, spin_c[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1)] = {};
   double spin_v[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1)] = {};
   double spin_dense[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1)] = {};  // M_spin, row-major
@@ -165,16 +166,17 @@ LanePlant::LanePlant(const Plant& plant, int width)
   }
   c.nq = m.nq();
   c.nq1 = m.nq1();
-  for (int col = 0; col < m.nq(); ++col)
-    for (int r = 0; r < m.nq(); ++r) {
-      c.spin_dense[r * m.nq() + col] = m.M_spin()(r, col);
-      if (m.M_spin()(r, col) != 0.0) {
+  for (int body = 1; body >= 0; --body)
+    for (int col = 0; col < m.nq(); ++col)
+      for (int r = 0; r < m.nq(); ++r) {
+        c.spin_dense[r * m.nq() + col] = m.M_spin()(r, col);
+        if (m.M_spin()(r, col) == 0.0 || (r < m.nq1() && col < m.nq1()) != (body == 1)) continue;
         c.spin_r[c.n_spin] = r;
         c.spin_c[c.n_spin] = col;
         c.spin_v[c.n_spin] = m.M_spin()(r, col);
         ++c.n_spin;
+        c.n_spin_body += body;
       }
-    }
   c.n_boxes = static_cast<int>(sc.boxes.size());
   for (int i = 0; i < c.n_boxes; ++i) {
     const Box& b = sc.boxes[static_cast<size_t>(i)];

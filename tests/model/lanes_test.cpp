@@ -148,7 +148,7 @@ TEST(LanePlant, EachMemberAsThePlantEvaluatesIt) {
           if (with_mass) {
             MatrixXd M = m.M_spin();
             for (int c = 0; c < n1; ++c)
-              for (int r = 0; r < n1; ++r) M(r, c) += out.Mb[static_cast<size_t>((c * n1 + r) * width + l)];
+              for (int r = 0; r < n1; ++r) M(r, c) = out.Mb[static_cast<size_t>((c * n1 + r) * width + l)];
             EXPECT_LE((M - ref.M).lpNorm<Eigen::Infinity>(), 1e-12 * (1.0 + ref.M.lpNorm<Eigen::Infinity>()))
                 << "round " << round << ", member " << l;
           }

@@ -26,8 +26,8 @@ namespace pedalwave::model {
 // What LanePlant::evaluate writes, each in lane layout.
 struct LaneTerms {
   std::vector<double> F;          // F(q, v) = B u + Q − bias, nq × width
-  std::vector<double> Mb;         // the body block of M (nq1 × nq1, column-major) × width; the
-                                  // whole M is Model::M_spin() + [Mb 0; 0 0]
+  std::vector<double> Mb;         // the body block of M (nq1 × nq1, column-major) × width, the
+                                  // rotors' spin in it; M's other entries are Model::M_spin()'s
   std::vector<double> dFdq_v;     // D_q v with ∂F/∂q's stiff terms (ImplicitTerms::dFdq_v), nq × width
   std::vector<double> D;          // with a Jacobian asked for: ∂F/∂v + a ∂F/∂q (ImplicitTerms::dFdv
                                   // with dq_in_dv = a), nq × nq (column-major) × width; its structural
@@ -48,6 +48,7 @@ struct LaneLU {
   std::vector<double> d_inv;   // nd × width
   std::vector<double> u_inv;   // (n − nd) × width
   std::vector<int> perm;       // the row swaps as one permutation, (n − nd) × width: row k ← perm[k]
+  bool identity = true;        // every lane's perm is the identity (no row swapped)
   // The motor block's part as it was last computed (LanePlant::factor): Z = C A21, (n − nd)² ×
   // width; the entries of D it came from (D(β_j, β_j), D(α_j, β_j), D(β_j, α_j)), 3 nd × width, and
   // a; whether A22's pivots were good (1/0), width.
@@ -86,7 +87,7 @@ class LanePlant {
   void evaluate(const double* q, const double* v, const LaneInputs& in, bool with_mass, LaneTerms& out,
                 double jacobian = 0.0, const double* v_start = nullptr);
 
-  // Each member's M − a D with M = Model::M_spin() + [Mb 0; 0 0] (Mb, D from LaneTerms) factored
+  // Each member's M − a D (M: its body block Mb, the rest Model::M_spin(); Mb, D from LaneTerms) factored
   // as StructuredLU::factor would (the same operations, each member's own pivots), into `out` for
   // the members with need[l] (the others' factors stay); ok[l] false where StructuredLU::factor
   // would return false (a zero or non-finite pivot).
@@ -95,8 +96,8 @@ class LanePlant {
   // x ← A⁻¹ x for every member at once (x nq × width, lane layout), A each member's factors in lu
   // (StructuredLU::solve's operations in its order, lane by lane).
   void solve(const LaneLU& lu, double* x) const;
-  // r = M x − (b F0 + a F1) for every member, M = Model::M_spin() + [Mb 0; 0 0] (Mb from a
-  // LaneTerms), x, F0, F1, r nq × width: implicit_contact's Newton residual.
+  // r = M x − (b F0 + a F1) for every member (M: its body block Mb from a LaneTerms, the rest
+  // Model::M_spin()), x, F0, F1, r nq × width: implicit_contact's Newton residual.
   void residual(const std::vector<double>& Mb, const double* x, const double* F0, const double* F1, double b,
                 double a, double* r) const;
 

@@ -52,6 +52,7 @@ struct Common {
   bool no_plots = false;
   bool quiet = false;
   bool no_lanes = false;
+  int group = 8;
   pedalwave::campaign::cli::CliOptions campaign;
 };
 
@@ -79,6 +80,11 @@ void add_common(CLI::App* sub, Common& c) {
   sub->add_flag("--no-lanes", c.no_lanes,
                 "step the sweep's runs one by one on the scalar plant (default: 8 at a time in lockstep, their "
                 "plants in SIMD lanes, where the machine and the scene allow)");
+  sub->add_option("--group", c.group,
+                  "the sweep's runs per lockstep group, one campaign item (a Slurm chunk counts groups); a "
+                  "member's result does not depend on its group")
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
   // Default campaign folder: <--out>/campaign (an empty dir here).
   pedalwave::campaign::cli::add_options(sub, c.campaign, "");
 }
@@ -98,6 +104,7 @@ paper::Settings settings(const Common& c) {
   s.plots = !c.no_plots;
   s.progress = !c.quiet;
   s.lanes = !c.no_lanes;
+  s.group = c.group;
   s.campaign = pedalwave::campaign::cli::options(c.campaign, c.jobs, s.progress);
   return s;
 }

@@ -87,17 +87,17 @@ std::vector<RunResult> run_all(const Settings& s, const std::vector<RunSpec>& sp
   return out;
 }
 
-// Runs of `base` at each gain of `k_c` as a campaign of groups of up to kGroup consecutive gains
-// (run_group: in lockstep lanes where Settings::lanes, the machine and the scene allow), the
-// results in k_c's order.
-constexpr std::size_t kGroup = 8;
+// Runs of `base` at each gain of `k_c` as a campaign of groups of up to Settings::group
+// consecutive gains (run_group: in lockstep lanes where Settings::lanes, the machine and the scene
+// allow), the results in k_c's order.
 std::vector<RunResult> run_group_campaign(const Settings& s, const RunSpec& base, const std::vector<double>& k_c,
                                           const std::string& name, const std::string& scene_name,
                                           const std::string& scene_text, double* wall_s = nullptr) {
   std::vector<std::string> lines;
-  for (std::size_t i = 0; i < k_c.size(); i += kGroup) {
+  const auto group = static_cast<std::size_t>(std::max(1, s.group));
+  for (std::size_t i = 0; i < k_c.size(); i += group) {
     const std::vector<double> g(k_c.begin() + static_cast<std::ptrdiff_t>(i),
-                                k_c.begin() + static_cast<std::ptrdiff_t>(std::min(k_c.size(), i + kGroup)));
+                                k_c.begin() + static_cast<std::ptrdiff_t>(std::min(k_c.size(), i + group)));
     lines.push_back(encode_group(base, g, s.lanes, scene_name, scene_text));
   }
   campaign::Options o = s.campaign;
@@ -123,7 +123,7 @@ std::string lanes_note(const Settings& s, const RunSpec& base) {
   const std::string why = lockstep_refusal(base);
   if (!why.empty()) return "one by one (not in lanes: " + why + ")";
   const int w = model::LanePlant::machine_width();
-  return std::to_string(kGroup) + " at a time in lockstep, " + std::to_string(w) + " per SIMD vector (" +
+  return std::to_string(s.group) + " at a time in lockstep, " + std::to_string(w) + " per SIMD vector (" +
          (w == 8 ? "AVX-512" : "AVX2") + ")";
 }
 

@@ -59,6 +59,8 @@ struct Settings {
   // The sweep's runs 8 at a time in lockstep, their plants in SIMD lanes (run_group), where the
   // machine and the scene allow; false: one by one on the scalar plant.
   bool lanes = true;
+  // The sweep's runs per lockstep group, one campaign item each (1: every run its own item).
+  int group = 8;
   bool progress = true;                      // progress bars on stderr
   bool plots = true;                         // write figures
   std::ostream* log = nullptr;               // printed numbers (nullptr = std::cout)

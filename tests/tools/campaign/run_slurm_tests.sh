@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # The campaign layer's Slurm backend on a real (one-node) Slurm cluster started here
 # (cluster.sh: munged, slurmctld, slurmd, all files under the build folder), with pedalwave_paper:
-#   1. a k_c sweep through sbatch job arrays (options from a YAML file, chunk 2, throttle 3) gives
-#      bit for bit the local backend's results (sweep.csv without its cpu_s column, the printed
-#      best and accuracy-check lines); each run ran exactly once;
+#   1. a k_c sweep through sbatch job arrays (options from a YAML file, chunk 2, throttle 3; its runs
+#      in lockstep groups of 2, the local ones in groups of 8) gives bit for bit the local backend's
+#      results (sweep.csv without its cpu_s column, the printed best and accuracy-check lines); each
+#      group ran exactly once;
 #   2. an array task cancelled while it runs (scancel JOB_TASK) is detected and rerun, and the
-#      results are still the local ones;
+#      results are still the local ones (one run per group, --group 1, from here on);
 #   3. the submitting process killed (SIGKILL) mid-campaign: the same command again resumes —
 #      finished runs are not rerun, the running task is followed, not resubmitted (runs.log holds
 #      every run exactly once), results the local ones;
@@ -73,7 +74,9 @@ poll_s: 0.2
 sbatch_options: ["--job-name=pw-test"]
 EOF
 t0=$(date +%s%N)
-"$PAPER" "${SWEEP[@]}" --backend slurm --slurm-config "$W/slurm.yaml" --out "$W/slurm1" >"$W/slurm1.log" 2>&1 ||
+# In lockstep groups of 2 (5 campaign items; the local run's groups are 8: a run's result does not
+# depend on its group).
+"$PAPER" "${SWEEP[@]}" --group 2 --backend slurm --slurm-config "$W/slurm.yaml" --out "$W/slurm1" >"$W/slurm1.log" 2>&1 ||
   { fail "slurm sweep: exit $?"; tail -5 "$W/slurm1.log"; }
 echo "slurm sweep: $((($(date +%s%N) - t0) / 1000000)) ms wall"
 same_as_local "$W/local1" "$W/slurm1" "$W/local1.log" "$W/slurm1.log" "sweep through sbatch"
@@ -81,13 +84,14 @@ C1="$W/slurm1/campaign/sweep"
 grep -q '^#SBATCH --partition=pw$' "$C1/job.sh" && grep -q '^#SBATCH --time=00:05:00$' "$C1/job.sh" &&
   grep -q '^#SBATCH --job-name=pw-test$' "$C1/job.sh" && pass "job.sh has the YAML file's options" ||
   fail "job.sh lacks the YAML file's options: $(grep SBATCH "$C1/job.sh" | tr '\n' ' ')"
-grep -q "array 0-4" "$W/slurm1.log" && pass "9 runs in chunks of 2 = array 0-4" || fail "expected array 0-4: $(grep submitted "$W/slurm1.log")"
-once_each "$C1" 9 && pass "each run ran once" || fail "runs.log: $(cat "$C1/runs.log" | tr '\n' ';')"
+grep -q "array 0-2" "$W/slurm1.log" && pass "9 runs in groups of 2 (5 items) in chunks of 2 = array 0-2" ||
+  fail "expected array 0-2: $(grep submitted "$W/slurm1.log")"
+once_each "$C1" 5 && pass "each group ran once" || fail "runs.log: $(cat "$C1/runs.log" | tr '\n' ';')"
 
 # ---- 2. a cancelled task is rerun ---------------------------------------------------------------
 LONG=(sweep --from 0 --to 3 --step 1 --duration 300 --checks 0 --no-plots --quiet)
 "$PAPER" "${LONG[@]}" --jobs 2 --out "$W/local2" >"$W/local2.log" 2>&1 || fail "local long sweep: exit $?"
-"$PAPER" "${LONG[@]}" --backend slurm --chunk 1 --throttle 2 --poll 0.2 --max-retries 2 --out "$W/slurm2" \
+"$PAPER" "${LONG[@]}" --group 1 --backend slurm --chunk 1 --throttle 2 --poll 0.2 --max-retries 2 --out "$W/slurm2" \
   >"$W/slurm2.log" 2>&1 &
 submitter=$!
 victim=""
@@ -112,7 +116,7 @@ fi
 same_as_local "$W/local2" "$W/slurm2" "$W/local2.log" "$W/slurm2.log" "after a cancelled task"
 
 # ---- 3. resume after the submitter was killed ---------------------------------------------------
-"$PAPER" "${LONG[@]}" --backend slurm --chunk 1 --throttle 1 --poll 0.2 --out "$W/slurm3" >"$W/slurm3a.log" 2>&1 &
+"$PAPER" "${LONG[@]}" --group 1 --backend slurm --chunk 1 --throttle 1 --poll 0.2 --out "$W/slurm3" >"$W/slurm3a.log" 2>&1 &
 submitter=$!
 C3="$W/slurm3/campaign/sweep"
 for _ in $(seq 300); do
@@ -123,7 +127,7 @@ kill -KILL "$submitter"; wait "$submitter" 2>/dev/null
 done_before=$(ls "$C3/results" 2>/dev/null | wc -l)
 queued=$(squeue -h -r -o "%F_%K %T" | tr '\n' ' ')
 echo "submitter killed with $done_before runs done, queue: $queued"
-"$PAPER" "${LONG[@]}" --backend slurm --chunk 1 --throttle 1 --poll 0.2 --out "$W/slurm3" >"$W/slurm3b.log" 2>&1 ||
+"$PAPER" "${LONG[@]}" --group 1 --backend slurm --chunk 1 --throttle 1 --poll 0.2 --out "$W/slurm3" >"$W/slurm3b.log" 2>&1 ||
   { fail "resumed sweep: exit $?"; tail -5 "$W/slurm3b.log"; }
 if grep -q "resuming: $done_before runs done" "$W/slurm3b.log" && [ "$done_before" -ge 1 ]; then
   pass "resumed with $done_before runs done"

@@ -247,7 +247,8 @@ TEST_F(Paper, LockstepGroupGivesEachRunsResultToRounding) {
 }
 
 // A group through its one-line text and the campaign's local backend: the direct run_group's
-// results bit for bit, in order; a malformed gain list is named.
+// results bit for bit, in order; a member's result independent of its group; a malformed gain
+// list is named.
 TEST_F(Paper, GroupLinesThroughTheCampaignGiveTheDirectGroupBitForBit) {
   const paper::Settings s = settings(2, "group_campaign");
   paper::RunSpec base;
@@ -274,6 +275,12 @@ TEST_F(Paper, GroupLinesThroughTheCampaignGiveTheDirectGroupBitForBit) {
       EXPECT_TRUE(std::isfinite(c[j].avg_speed));
     }
   }
+  // A member's result does not depend on its group: k_c = 4 alone (its lane's company padding
+  // copies of it) is the second member of {0, 4, 8} bit for bit.
+  const std::vector<paper::RunResult> alone = paper::run_group(base, {4.0}, true);
+  const std::vector<paper::RunResult> in_group = paper::decode_group_result(out[0]);
+  EXPECT_EQ(std::bit_cast<std::uint64_t>(alone[0].avg_speed), std::bit_cast<std::uint64_t>(in_group[1].avg_speed));
+  EXPECT_EQ(std::bit_cast<std::uint64_t>(alone[0].com_x_final), std::bit_cast<std::uint64_t>(in_group[1].com_x_final));
   std::string bad = lines[0];
   const auto at = bad.rfind("\tk_c=");  // the group's list (the base's own k_c is inside its text)
   ASSERT_NE(at, std::string::npos);

@@ -79,8 +79,11 @@ RunResult run(const RunSpec& spec);
 // arithmetic in SIMD lanes (model::LanePlant, LaneStepper: each member's controller, commands,
 // Jacobian refreshes and Newton iterations its own), when `lanes` is true, the machine has AVX2 or
 // AVX-512, the scene is one LanePlant runs and the integrator is implicit_contact; else each with
-// run(). Either way a member's result is run()'s to rounding (its plant the scalar one's to 1e-14
-// per step; tests/tools/paper_lanes_test.cpp). cpu_s and wall_s: the group's, shared equally.
+// run(). In lanes a member's step is run()'s to rounding (tests/model/lanes_test.cpp), its result
+// too over a few seconds (tests/tools/paper/paper_test.cpp, '*Group*'); over 60 s a run sensitive
+// to rounding can drift further (the sweep: ≤ 0.022 mm of COM, README "The k_c sweep in lockstep
+// SIMD lanes"). A member's result does not depend on its group. cpu_s and wall_s: the group's,
+// shared equally.
 std::vector<RunResult> run_group(const RunSpec& base, const std::vector<double>& k_c, bool lanes = true);
 // Whether run_group steps `base` in lanes on this machine, or why not ("" = it does).
 std::string lockstep_refusal(const RunSpec& base);

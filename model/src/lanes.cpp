@@ -72,16 +72,8 @@ namespace {
 #define PW_LANES_COS _ZGVeN8v_cos
 #define PW_LANES_NATIVE __m512d
 #define PW_LANES_ANY(m) (_mm512_test_epi64_mask((__m512i)(m), (__m512i)(m)) != 0)
-#define PW_LANES_SQRT(x) _mm512_mask_sqrt_pd((x), 0xFF, (x))  // _mm512_sqrt_pd: GCC 12 bug 105593
-#include "lanes_kernel.inc"
-#undef PW_LANES_NS
-#undef PW_LANES_W
-#undef PW_LANES_TARGET
-#undef PW_LANES_SIN
-#undef PW_LANES_COS
-#undef PW_LANES_NATIVE
-#undef PW_LANES_ANY
-#undef PW_LANES_SQRT
+#define PW_LANES_SQRT(x) _mm512_mask_sqrt_pd((x), 0xFF, (x))  // _mm512_sqrt_pd: GCC 12 -Wmaybe-uninitialized in its header
+#include "lanes_kernel.inc"  // undefines the PW_LANES_ macros
 
 #define PW_LANES_NS avx2
 #define PW_LANES_W 4
@@ -91,15 +83,7 @@ namespace {
 #define PW_LANES_NATIVE __m256d
 #define PW_LANES_ANY(m) (_mm256_testz_si256((__m256i)(m), (__m256i)(m)) == 0)
 #define PW_LANES_SQRT(x) _mm256_sqrt_pd(x)
-#include "lanes_kernel.inc"
-#undef PW_LANES_NS
-#undef PW_LANES_W
-#undef PW_LANES_TARGET
-#undef PW_LANES_SIN
-#undef PW_LANES_COS
-#undef PW_LANES_NATIVE
-#undef PW_LANES_ANY
-#undef PW_LANES_SQRT
+#include "lanes_kernel.inc"  // undefines the PW_LANES_ macros
 
 }  // namespace
 

@@ -6,7 +6,7 @@
 namespace pedalwave::model {
 
 LaneStepper::LaneStepper(LanePlant& plant, const Plant& scalar, const IntegratorOptions& o)
-    : plant_(plant), o_(o), W_(plant.width()), nq_(plant.nq()), n1_(plant.nq1()), J_(plant.joints()),
+    : plant_(plant), o_(o), W_(plant.width()), nq_(plant.nq()),
       lu_(plant.nq(), plant.joints(), plant.width()), t0_(plant.make_terms()), t1_(plant.make_terms()) {
   validate(o_);
   if (o_.method != Method::kImplicitContact)

@@ -55,7 +55,7 @@ struct LanePlant::Workspace {
   alignas(64) double gz[kMaxPoints * kMaxWidth];
   std::uint64_t sig[kMaxWidth];
   alignas(64) double y[(2 * kMaxLinks + 1) * kMaxWidth];  // a solve's permuted right-hand side
-  alignas(64) double A[(2 * kMaxLinks + 1) * (2 * kMaxLinks + 1) * kMaxWidth];  // a factorization's matrix
+  alignas(64) double A[(kMaxLinks + 2) * (kMaxLinks + 2) * kMaxWidth];  // a factorization's Schur complement
   // The Jacobian's contacts not yet added to its block (the kernel's jacobian_flush): each four
   // rows of nq1 entries.
   static constexpr int kContacts = 32;

@@ -144,7 +144,7 @@ class LaneStepper {
 
   LanePlant& plant_;
   IntegratorOptions o_;
-  int W_, nq_, n1_, J_;
+  int W_, nq_;
   std::vector<Member> m_;
   LaneLU lu_;  // every member's factors, for the solves in lanes
   std::vector<IntegratorStats> stats_;
